@@ -1,0 +1,15 @@
+#pragma once
+// TUM RGB-D trajectory format: "t x y z qx qy qz qw" per line, '#' comments.
+#include <forest_slam/core/trajectory.h>
+
+#include <string>
+
+namespace forest_slam::io
+{
+/** Throws std::runtime_error naming file and line on any malformed line,
+ * non-finite value or time going backwards. */
+core::Trajectory readTum(const std::string& path);
+/** Atomic write, 9 decimals for time, 6 for metres, 9 for quaternions. */
+void writeTum(const std::string& path, const core::Trajectory& traj);
+
+}  // namespace forest_slam::io

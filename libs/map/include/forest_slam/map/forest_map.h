@@ -1,0 +1,161 @@
+#pragma once
+// CForestMap: the map of the paper's §4.5 as an MRPT metric map.
+//  - a grid of cubic submaps (20 m by default), keyed by integer cell
+//    coordinates, each with an edge cloud and a planar cloud kept by their own
+//    voxel filters;
+//  - a tree layer (stems with position, DBH, height, quality).
+// Registered with MRPT's map factory as "forestMap" so CMultiMetricMap can
+// create it from an INI "[map]" section, and serializable into MRPT archives.
+#include <forest_slam/map/voxel_cloud.h>
+#include <mrpt/config/CLoadableOptions.h>
+#include <mrpt/maps/CMetricMap.h>
+#include <mrpt/maps/CSimplePointsMap.h>
+#include <mrpt/math/TBoundingBox.h>
+#include <mrpt/poses/CPose3D.h>
+
+#include <Eigen/Geometry>
+#include <memory>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+namespace forest_slam::map
+{
+/** One stem of the tree layer. Coordinates in the map frame. */
+struct TreeRecord
+{
+	uint32_t id = 0;
+	double x = 0, y = 0;  ///< stem centre at breast height [m]
+	double z_ground = 0;  ///< terrain elevation under the stem [m]
+	double dbh_m = 0;
+	double height_m = 0;  ///< 0 if the top was not seen
+	uint32_t n_points = 0;
+	double fit_rmse_m = 0;
+	double arc_coverage_deg = 0;
+	uint16_t n_slices = 0;
+	uint8_t quality = 0;  ///< 0 = good; bit flags defined by libs/trees
+};
+
+/** A 20 m cubic cell of the map. */
+struct Submap
+{
+	VoxelCloud edge, planar;
+	size_t size() const { return edge.size() + planar.size(); }
+};
+
+using SubmapKey = VoxelKey;
+
+/** Options of CForestMap (INI section [forest_map] in the mapping configs). */
+struct ForestMapOptions : public mrpt::config::CLoadableOptions
+{
+	double submap_size_m = 20.0;  ///< edge of the cubic submaps
+	double edge_voxel_m = 0.2;	///< voxel filter of edge points
+	double planar_voxel_m = 0.4;  ///< voxel filter of planar points
+	/** Insertion of a raw rotating scan: LOAM smoothness threshold above
+	 * which a point is an edge (below: planar). */
+	double edge_smoothness_threshold = 0.1;
+	int smoothness_half_window = 5;	 ///< points each side, same ring
+	double max_insert_range_m = 80.0;
+	double likelihood_sigma_m = 0.2;  ///< for computeObservationLikelihood
+	int likelihood_decimation = 10;
+
+	void loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
+							const std::string& section) override;
+	void saveToConfigFile(mrpt::config::CConfigFileBase& c,
+						  const std::string& section) const override;
+	/** Throws std::invalid_argument naming the bad field. */
+	void validate() const;
+};
+
+class CForestMap : public mrpt::maps::CMetricMap
+{
+	DEFINE_SERIALIZABLE(CForestMap, forest_slam::map)
+
+   public:
+	using TOptions = ForestMapOptions;
+
+	explicit CForestMap(const TOptions& opts = TOptions());
+
+	/** Changes the options; clears the map if voxel or submap sizes change. */
+	void setOptions(const TOptions& opts);
+	const TOptions& options() const { return opts_; }
+
+	/** Inserts already-classified feature points given in the map frame. */
+	void insertFeatures(const std::vector<Eigen::Vector3f>& edge_map,
+						const std::vector<Eigen::Vector3f>& planar_map);
+	/** Same, with points in the sensor frame and the sensor pose in the map. */
+	void insertFeatures(const std::vector<Eigen::Vector3f>& edge_sensor,
+						const std::vector<Eigen::Vector3f>& planar_sensor,
+						const Eigen::Isometry3d& sensor_to_map);
+
+	/** Edge and planar centroids of all submaps whose cube intersects the
+	 * sphere (centre, radius): the local map for scan-to-map matching. */
+	void collectNear(const Eigen::Vector3d& centre, double radius_m,
+					 std::vector<Eigen::Vector3f>& edge,
+					 std::vector<Eigen::Vector3f>& planar) const;
+	/** Keys of the submaps intersecting that sphere. */
+	std::vector<SubmapKey> submapsNear(
+		const Eigen::Vector3d& centre, double radius_m) const;
+	SubmapKey submapKeyOf(const Eigen::Vector3f& p) const;
+
+	const std::unordered_map<SubmapKey, Submap, VoxelKeyHash>& submaps() const
+	{
+		return submaps_;
+	}
+	size_t edgePointCount() const;
+	size_t planarPointCount() const;
+
+	/** The tree layer. */
+	const std::vector<TreeRecord>& trees() const { return trees_; }
+	void setTrees(std::vector<TreeRecord> trees) { trees_ = std::move(trees); }
+
+	mrpt::math::TBoundingBoxf boundingBox() const;
+
+	// CMetricMap interface
+	bool isEmpty() const override;
+	void saveMetricMapRepresentationToFile(
+		const std::string& filNamePrefix) const override;
+	const mrpt::maps::CSimplePointsMap* getAsSimplePointsMap() const override;
+	void getVisualizationInto(mrpt::opengl::CSetOfObjects& o) const override;
+	std::string asString() const override;
+
+	MAP_DEFINITION_START(CForestMap)
+	TOptions forestOpts;
+	MAP_DEFINITION_END(CForestMap)
+
+   protected:
+	void internal_clear() override;
+	bool internal_insertObservation(
+		const mrpt::obs::CObservation& obs,
+		const std::optional<const mrpt::poses::CPose3D>& robotPose =
+			std::nullopt) override;
+	double internal_computeObservationLikelihood(
+		const mrpt::obs::CObservation& obs,
+		const mrpt::poses::CPose3D& takenFrom) const override;
+	bool internal_canComputeObservationLikelihood(
+		const mrpt::obs::CObservation& obs) const override;
+
+   private:
+	TOptions opts_;
+	std::unordered_map<SubmapKey, Submap, VoxelKeyHash> submaps_;
+	std::vector<TreeRecord> trees_;
+	mutable std::shared_ptr<mrpt::maps::CSimplePointsMap> cached_points_;
+
+	Submap& submapFor(const Eigen::Vector3f& p);
+	void markDirty() { cached_points_.reset(); }
+};
+
+/** Makes sure CForestMap is known to MRPT's class registry and map factory
+ * (needed before reading it from an archive or creating it through
+ * CMultiMetricMap when linking statically). Idempotent. */
+void registerForestMapClasses();
+
+/** Splits the points of one ring-ordered scan into edges and planar points
+ * with LOAM's smoothness (curvature) over `half_window` neighbours each side
+ * on the same ring. Points are in the sensor frame, ordered by column. */
+void classifyBySmoothness(const std::vector<Eigen::Vector3f>& ring_points,
+						  int half_window, double edge_threshold,
+						  std::vector<Eigen::Vector3f>& edges,
+						  std::vector<Eigen::Vector3f>& planar);
+
+}  // namespace forest_slam::map

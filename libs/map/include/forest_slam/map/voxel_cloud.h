@@ -1,0 +1,80 @@
+#pragma once
+// A point cloud kept by a voxel filter: each voxel stores the running sum of
+// the points that fell into it, so its representative is the exact centroid
+// (the paper's §4.5 VoxelGrid behaviour) however many scans fed it.
+#include <Eigen/Core>
+
+#include <cmath>
+#include <cstdint>
+#include <unordered_map>
+#include <vector>
+
+namespace forest_slam::map
+{
+struct VoxelKey
+{
+	int32_t x = 0, y = 0, z = 0;
+	bool operator==(const VoxelKey& o) const
+	{
+		return x == o.x && y == o.y && z == o.z;
+	}
+};
+
+struct VoxelKeyHash
+{
+	size_t operator()(const VoxelKey& k) const
+	{
+		// Teschner et al. spatial hash primes.
+		return (static_cast<size_t>(k.x) * 73856093u) ^
+			   (static_cast<size_t>(k.y) * 19349663u) ^
+			   (static_cast<size_t>(k.z) * 83492791u);
+	}
+};
+
+inline VoxelKey voxelKeyOf(const Eigen::Vector3f& p, float inv_size)
+{
+	return {static_cast<int32_t>(std::floor(p.x() * inv_size)),
+			static_cast<int32_t>(std::floor(p.y() * inv_size)),
+			static_cast<int32_t>(std::floor(p.z() * inv_size))};
+}
+
+class VoxelCloud
+{
+   public:
+	explicit VoxelCloud(float voxel_size_m = 0.2f) { setVoxelSize(voxel_size_m); }
+	/** Changing the size clears the cloud. */
+	void setVoxelSize(float voxel_size_m);
+	float voxelSize() const { return size_; }
+
+	void insert(const Eigen::Vector3f& p);
+	size_t size() const { return voxels_.size(); }
+	bool empty() const { return voxels_.empty(); }
+	void clear() { voxels_.clear(); }
+
+	/** Centroid of every voxel (unordered). */
+	void appendCentroids(std::vector<Eigen::Vector3f>& out) const;
+	/** Centroid of the voxel holding `p`, if any. */
+	bool centroidAt(const Eigen::Vector3f& p, Eigen::Vector3f& c) const;
+	/** Nearest centroid among the 27 voxels around `p`; false if none. */
+	bool nearestAround(const Eigen::Vector3f& p, Eigen::Vector3f& best,
+					   float& best_sq_dist) const;
+
+	struct Accum
+	{
+		Eigen::Vector3f sum = Eigen::Vector3f::Zero();
+		uint32_t count = 0;
+		Eigen::Vector3f centroid() const { return sum / static_cast<float>(count); }
+	};
+	const std::unordered_map<VoxelKey, Accum, VoxelKeyHash>& voxels() const
+	{
+		return voxels_;
+	}
+	/** Restores one voxel (deserialization). */
+	void setVoxel(const VoxelKey& k, const Accum& a) { voxels_[k] = a; }
+
+   private:
+	float size_ = 0.2f, inv_size_ = 5.f;
+	std::unordered_map<VoxelKey, Accum, VoxelKeyHash> voxels_;
+};
+
+}  // namespace forest_slam::map
