@@ -311,26 +311,21 @@ void CForestMap::internal_clear()
 	markDirty();
 }
 
-void classifyBySmoothness(const std::vector<Eigen::Vector3f>& pts,
-						  int w, double edge_threshold,
-						  std::vector<Eigen::Vector3f>& edges,
-						  std::vector<Eigen::Vector3f>& planar)
+std::vector<uint8_t> smoothnessEdgeFlags(
+	const std::vector<Eigen::Vector3f>& pts, int w, double edge_threshold)
 {
 	const int n = static_cast<int>(pts.size());
-	for (int i = 0; i < n; i++)
+	std::vector<uint8_t> flags(pts.size(), 0);
+	for (int i = w; i + w < n; i++)
 	{
-		if (i < w || i + w >= n)
-		{
-			planar.push_back(pts[i]);
-			continue;
-		}
 		// LOAM curvature: |sum_j (X_j - X_i)| / (|S| * |X_i|).
 		Eigen::Vector3f diff = Eigen::Vector3f::Zero();
 		for (int j = i - w; j <= i + w; j++)
 			if (j != i) diff += pts[j] - pts[i];
 		const float c = diff.norm() / (2 * w * std::max(pts[i].norm(), 1e-3f));
-		(c > edge_threshold ? edges : planar).push_back(pts[i]);
+		flags[i] = c > edge_threshold ? 1 : 0;
 	}
+	return flags;
 }
 
 bool CForestMap::internal_insertObservation(
@@ -354,8 +349,13 @@ bool CForestMap::internal_insertObservation(
 		for (const auto& p : ring)
 			if (p.allFinite() && p.squaredNorm() <= max_r2) kept.push_back(p);
 		if (rings.size() > 1)
-			classifyBySmoothness(kept, opts_.smoothness_half_window,
-								 opts_.edge_smoothness_threshold, edges, planar);
+		{
+			const auto flags = smoothnessEdgeFlags(
+				kept, opts_.smoothness_half_window,
+				opts_.edge_smoothness_threshold);
+			for (size_t i = 0; i < kept.size(); i++)
+				(flags[i] ? edges : planar).push_back(kept[i]);
+		}
 		else
 			planar.insert(planar.end(), kept.begin(), kept.end());
 	}

@@ -150,12 +150,12 @@ class CForestMap : public mrpt::maps::CMetricMap
  * CMultiMetricMap when linking statically). Idempotent. */
 void registerForestMapClasses();
 
-/** Splits the points of one ring-ordered scan into edges and planar points
- * with LOAM's smoothness (curvature) over `half_window` neighbours each side
- * on the same ring. Points are in the sensor frame, ordered by column. */
-void classifyBySmoothness(const std::vector<Eigen::Vector3f>& ring_points,
-						  int half_window, double edge_threshold,
-						  std::vector<Eigen::Vector3f>& edges,
-						  std::vector<Eigen::Vector3f>& planar);
+/** LOAM smoothness (curvature) of each point of one ring-ordered scan line
+ * over `half_window` neighbours each side: flag[i] = 1 if point i is an edge
+ * (smoothness > edge_threshold), 0 if planar. Points in the sensor frame,
+ * ordered by firing; the first/last `half_window` points are planar. */
+std::vector<uint8_t> smoothnessEdgeFlags(
+	const std::vector<Eigen::Vector3f>& ring_points, int half_window,
+	double edge_threshold);
 
 }  // namespace forest_slam::map

@@ -1,0 +1,45 @@
+#pragma once
+// A whole offline run: stream a rawlog through the MappingPipeline, show
+// progress, stop cleanly on SIGINT/SIGTERM or damaged input, and write every
+// output atomically into the output folder.
+#include <forest_slam/pipeline/mapping_config.h>
+#include <forest_slam/pipeline/mapping_pipeline.h>
+
+#include <string>
+
+namespace forest_slam::pipeline
+{
+struct MappingJob
+{
+	std::string config_path;
+	std::string rawlog_path;
+	std::string out_dir;
+	std::string poses_path;	 ///< optional TUM file (pose_source=trajectory)
+	int progress_tty = -1;	///< -1 auto, 0 log lines, 1 bar
+};
+
+struct MappingResult
+{
+	RunStats stats;
+	double wall_seconds = 0;
+	bool input_damaged = false;	 ///< stopped at a damaged record
+	bool interrupted = false;  ///< SIGINT/SIGTERM
+	std::string damage_message;
+	std::vector<std::string> outputs;  ///< files written
+};
+
+/** Runs the job. Throws core::ConfigError / std::runtime_error for problems
+ * found before processing starts (bad config, unreadable input). Damage
+ * found mid-way does not throw: processing stops there, outputs are written
+ * for what was processed and `input_damaged` is set. */
+MappingResult runMapping(const MappingJob& job);
+
+/** Writes trajectory.tum, forest.map (gzip MRPT archive of the CForestMap)
+ * and run_summary.json into `out_dir`; returns the paths written. */
+std::vector<std::string> writeOutputs(
+	const MappingPipeline& p, const MappingResult& r, const std::string& out_dir);
+
+/** Reads a forest.map written by writeOutputs. */
+std::shared_ptr<map::CForestMap> loadForestMap(const std::string& path);
+
+}  // namespace forest_slam::pipeline

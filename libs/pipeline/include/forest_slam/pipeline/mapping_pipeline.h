@@ -1,0 +1,72 @@
+#pragma once
+// The mapping pipeline, one observation at a time. Reads top to bottom like
+// the paper's Fig. 1; stages join as they land (see doc/architecture.md):
+//   lidar scan -> unpack (core) -> pose at every firing (pose source) ->
+//   smoothness split edge/planar (map) -> deskew + insert into CForestMap.
+#include <forest_slam/core/trajectory.h>
+#include <forest_slam/map/forest_map.h>
+#include <forest_slam/pipeline/mapping_config.h>
+#include <mrpt/obs/CObservation.h>
+
+#include <cstdint>
+#include <optional>
+
+namespace mrpt::obs
+{
+class CObservationRotatingScan;
+}
+
+namespace forest_slam::pipeline
+{
+struct RunStats
+{
+	uint64_t observations = 0;
+	uint64_t scans_in = 0;	///< lidar observations seen
+	uint64_t scans_mapped = 0;
+	uint64_t scans_empty = 0;  ///< no valid return
+	uint64_t scans_out_of_order = 0;  ///< time not after the previous scan
+	uint64_t scans_outside_poses = 0;  ///< no pose for their time
+	uint64_t scans_unreadable = 0;	///< unknown model / malformed image
+	uint64_t imu = 0, gnss = 0, other = 0;
+	uint64_t points_in = 0;
+	double first_stamp_s = 0, last_stamp_s = 0;
+	double dataSeconds() const
+	{
+		return scans_in > 0 ? last_stamp_s - first_stamp_s : 0.0;
+	}
+};
+
+class MappingPipeline
+{
+   public:
+	/** `poses` is required when the config asks pose_source=trajectory. */
+	MappingPipeline(const MappingConfig& cfg,
+					std::optional<core::Trajectory> poses = std::nullopt);
+
+	/** Dispatches by sensor label; never throws on bad sensor data (it is
+	 * counted and logged once), throws only on programming errors. */
+	void process(const mrpt::obs::CObservation::Ptr& obs);
+
+	/** Lidar pose per mapped scan at the scan's reference time (its first
+	 * firing), in the map frame. */
+	const core::Trajectory& trajectory() const { return trajectory_; }
+	const map::CForestMap& forestMap() const { return map_; }
+	const RunStats& stats() const { return stats_; }
+	bool reachedScanLimit() const;
+
+   private:
+	MappingConfig cfg_;
+	std::optional<core::Trajectory> poses_;
+	map::CForestMap map_;
+	core::Trajectory trajectory_;
+	RunStats stats_;
+	bool have_last_scan_ = false;
+	double last_scan_stamp_s_ = 0;
+
+	void processScan(const mrpt::obs::CObservationRotatingScan& scan);
+	/** Lidar pose in the map frame at absolute time t (--poses files hold
+	 * lidar poses, like our own trajectory.tum, so they can be fed back). */
+	bool lidarPoseAt(double t_s, Eigen::Isometry3d& out) const;
+};
+
+}  // namespace forest_slam::pipeline

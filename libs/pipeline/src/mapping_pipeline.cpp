@@ -1,0 +1,186 @@
+#include <forest_slam/core/log.h>
+#include <forest_slam/core/scan_points.h>
+#include <forest_slam/pipeline/mapping_pipeline.h>
+
+#include <mrpt/obs/CObservationGPS.h>
+#include <mrpt/obs/CObservationIMU.h>
+#include <mrpt/obs/CObservationRotatingScan.h>
+#include <mrpt/obs/CObservationVelodyneScan.h>
+#include <mrpt/system/datetime.h>
+
+#include <cmath>
+#include <stdexcept>
+
+namespace forest_slam::pipeline
+{
+MappingPipeline::MappingPipeline(
+	const MappingConfig& cfg, std::optional<core::Trajectory> poses)
+	: cfg_(cfg), poses_(std::move(poses)), map_(cfg.forest_map)
+{
+	if (cfg_.pipeline.poseSource() == PoseSource::Trajectory)
+	{
+		if (!poses_ || poses_->size() < 2)
+			throw std::invalid_argument(
+				"[pipeline] pose_source=trajectory needs a trajectory with at "
+				"least 2 poses (forest-slam map --poses FILE.tum)");
+	}
+}
+
+bool MappingPipeline::reachedScanLimit() const
+{
+	return cfg_.pipeline.max_scans > 0 &&
+		   stats_.scans_mapped >= cfg_.pipeline.max_scans;
+}
+
+void MappingPipeline::process(const mrpt::obs::CObservation::Ptr& obs)
+{
+	if (!obs) return;
+	stats_.observations++;
+	const auto& label = obs->sensorLabel;
+	const auto& o = cfg_.pipeline;
+	if (label == o.lidar_label)
+	{
+		if (auto rot = std::dynamic_pointer_cast<mrpt::obs::CObservationRotatingScan>(obs))
+			processScan(*rot);
+		else if (auto vel = std::dynamic_pointer_cast<mrpt::obs::CObservationVelodyneScan>(obs))
+		{
+			mrpt::obs::CObservationRotatingScan converted;
+			converted.fromVelodyne(*vel);
+			converted.sensorLabel = vel->sensorLabel;
+			processScan(converted);
+		}
+		else
+		{
+			stats_.other++;
+			core::logOnce(core::LogLevel::Warn, std::string("lidar-type:") + obs->GetRuntimeClass()->className,
+						  "observations labelled '" + label + "' of type " +
+							  obs->GetRuntimeClass()->className +
+							  " are not a rotating lidar scan; ignored");
+		}
+	}
+	else if (label == o.imu_label &&
+			 std::dynamic_pointer_cast<mrpt::obs::CObservationIMU>(obs))
+		stats_.imu++;  // consumed by the IMU/deskew stage (issue 5)
+	else if (label == o.gnss_label &&
+			 std::dynamic_pointer_cast<mrpt::obs::CObservationGPS>(obs))
+		stats_.gnss++;	// consumed by the back-end (issue 8)
+	else
+	{
+		stats_.other++;
+		core::logOnce(core::LogLevel::Info, "label:" + label,
+					  "observations with sensor label '" + label + "' (" +
+						  obs->GetRuntimeClass()->className +
+						  ") are not used by this configuration");
+	}
+}
+
+bool MappingPipeline::lidarPoseAt(double t_s, Eigen::Isometry3d& out) const
+{
+	if (cfg_.pipeline.poseSource() == PoseSource::Static)
+	{
+		out = Eigen::Isometry3d::Identity();
+		return true;
+	}
+	return core::interpolatePose(*poses_, t_s, out, 1e-3);
+}
+
+void MappingPipeline::processScan(const mrpt::obs::CObservationRotatingScan& scan)
+{
+	stats_.scans_in++;
+	const double stamp = mrpt::Clock::toDouble(scan.timestamp);
+	if (stats_.scans_in == 1) stats_.first_stamp_s = stamp;
+	if (!std::isfinite(stamp) ||
+		(have_last_scan_ && stamp <= last_scan_stamp_s_))
+	{
+		stats_.scans_out_of_order++;
+		core::logOnce(core::LogLevel::Warn, "scan-time-order",
+					  "lidar scan " + std::to_string(stats_.scans_in - 1) +
+						  " has time " + std::to_string(stamp) +
+						  " s, not after the previous scan (" +
+						  std::to_string(last_scan_stamp_s_) +
+						  " s): skipped (further such scans counted silently)");
+		return;
+	}
+	have_last_scan_ = true;
+	last_scan_stamp_s_ = stamp;
+	stats_.last_stamp_s = stamp;
+
+	core::ScanPoints pts;
+	try
+	{
+		pts = core::unpackRotatingScan(scan);
+	}
+	catch (const std::exception& e)
+	{
+		stats_.scans_unreadable++;
+		core::logOnce(core::LogLevel::Warn, "scan-unreadable",
+					  "lidar scan " + std::to_string(stats_.scans_in - 1) +
+						  " cannot be decoded: " + e.what() + " (skipped)");
+		return;
+	}
+	stats_.points_in += pts.points.size();
+
+	Eigen::Isometry3d scan_pose;
+	if (!lidarPoseAt(stamp, scan_pose) ||
+		(cfg_.pipeline.deskew && !lidarPoseAt(stamp + pts.sweep_s, scan_pose)))
+	{
+		stats_.scans_outside_poses++;
+		core::logOnce(core::LogLevel::Warn, "scan-no-pose",
+					  "lidar scan at t=" + std::to_string(stamp) +
+						  " s is outside the --poses trajectory: skipped");
+		return;
+	}
+	lidarPoseAt(stamp, scan_pose);
+
+	// Per ring, in firing order, with the range gate applied.
+	const auto& po = cfg_.pipeline;
+	std::vector<std::vector<const core::ScanPoint*>> rings(scan.rowCount);
+	for (const auto& p : pts.points)
+		if (p.range_m >= po.min_range_m && p.range_m <= po.max_range_m &&
+			std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z))
+			rings[p.ring].push_back(&p);
+
+	// Deskew poses per firing column, computed once and shared by all rings.
+	std::vector<Eigen::Isometry3f> column_pose(scan.columnCount);
+	std::vector<uint8_t> column_done(scan.columnCount, 0);
+	auto poseOfColumn = [&](const core::ScanPoint& p) -> const Eigen::Isometry3f& {
+		if (!column_done[p.column])
+		{
+			Eigen::Isometry3d T = scan_pose;
+			if (po.deskew) lidarPoseAt(stamp + p.t_s, T);
+			column_pose[p.column] = T.cast<float>();
+			column_done[p.column] = 1;
+		}
+		return column_pose[p.column];
+	};
+
+	std::vector<Eigen::Vector3f> edge_map, planar_map, ring_xyz;
+	const auto& mo = cfg_.forest_map;
+	size_t valid = 0;
+	for (const auto& ring : rings)
+	{
+		ring_xyz.clear();
+		for (const auto* p : ring) ring_xyz.emplace_back(p->x, p->y, p->z);
+		valid += ring.size();
+		// Smoothness on the raw ring order (sensor frame); each point then
+		// moves with the pose at its own firing time (deskew).
+		const auto edge = map::smoothnessEdgeFlags(
+			ring_xyz, mo.smoothness_half_window, mo.edge_smoothness_threshold);
+		for (size_t i = 0; i < ring.size(); i++)
+			(edge[i] ? edge_map : planar_map)
+				.push_back(poseOfColumn(*ring[i]) * ring_xyz[i]);
+	}
+	if (valid == 0)
+	{
+		stats_.scans_empty++;
+		core::logOnce(core::LogLevel::Warn, "scan-empty",
+					  "lidar scan at t=" + std::to_string(stamp) +
+						  " s has no valid return: skipped");
+		return;
+	}
+	map_.insertFeatures(edge_map, planar_map);
+	trajectory_.push_back({stamp, scan_pose});
+	stats_.scans_mapped++;
+}
+
+}  // namespace forest_slam::pipeline
