@@ -1,0 +1,181 @@
+#include <forest_slam/core/config.h>
+#include <forest_slam/io/rawlog_reader.h>
+#include <forest_slam/map/forest_map.h>
+#include <gtest/gtest.h>
+#include <mrpt/config/CConfigFileMemory.h>
+#include <mrpt/io/CMemoryStream.h>
+#include <mrpt/maps/CMultiMetricMap.h>
+#include <mrpt/obs/CObservationRotatingScan.h>
+#include <mrpt/serialization/CArchive.h>
+
+#include <filesystem>
+
+using namespace forest_slam;
+using map::CForestMap;
+
+TEST(VoxelCloud, KeepsExactCentroidPerVoxel)
+{
+	map::VoxelCloud c(0.5f);
+	c.insert({0.1f, 0.1f, 0.1f});
+	c.insert({0.3f, 0.1f, 0.1f});
+	c.insert({0.7f, 0.1f, 0.1f});  // next voxel in x
+	c.insert({NAN, 0, 0});	// ignored
+	ASSERT_EQ(c.size(), 2u);
+	Eigen::Vector3f cen;
+	ASSERT_TRUE(c.centroidAt({0.2f, 0.2f, 0.2f}, cen));
+	EXPECT_TRUE(cen.isApprox(Eigen::Vector3f(0.2f, 0.1f, 0.1f)));
+	float d2;
+	ASSERT_TRUE(c.nearestAround({0.9f, 0.1f, 0.1f}, cen, d2));
+	EXPECT_NEAR(cen.x(), 0.7f, 1e-6);
+	EXPECT_THROW(c.setVoxelSize(0), std::invalid_argument);
+}
+
+TEST(ForestMap, InsertionVoxelFilteringAndSubmaps)
+{
+	map::ForestMapOptions o;
+	o.submap_size_m = 20;
+	o.edge_voxel_m = 0.1;
+	o.planar_voxel_m = 0.5;
+	CForestMap m(o);
+	EXPECT_TRUE(m.isEmpty());
+	// A 10 x 10 m ground patch sampled every 5 cm -> (10/0.5)^2 planar voxels,
+	// a vertical line (stem) sampled every 1 cm over 2 m -> 20 edge voxels.
+	std::vector<Eigen::Vector3f> planar, edge;
+	for (int i = 0; i < 200; i++)
+		for (int j = 0; j < 200; j++)
+			planar.emplace_back(0.025f + i * 0.05f, 0.025f + j * 0.05f, 0.01f);
+	for (int k = 0; k < 200; k++) edge.emplace_back(5.05f, 5.05f, 0.005f + k * 0.01f);
+	m.insertFeatures(edge, planar);
+	EXPECT_EQ(m.planarPointCount(), 400u);
+	EXPECT_EQ(m.edgePointCount(), 20u);
+	EXPECT_EQ(m.submaps().size(), 1u);
+	// Re-inserting the same points does not grow the map.
+	m.insertFeatures(edge, planar);
+	EXPECT_EQ(m.planarPointCount(), 400u);
+	// Points 30 m away land in another submap.
+	m.insertFeatures({}, {Eigen::Vector3f(35, 5, 0)});
+	EXPECT_EQ(m.submaps().size(), 2u);
+	EXPECT_EQ(m.getAsSimplePointsMap()->size(), 421u);
+	const auto bb = m.boundingBox();
+	EXPECT_NEAR(bb.max.x, 35, 1e-3);
+	EXPECT_FALSE(m.isEmpty());
+	m.clear();
+	EXPECT_TRUE(m.isEmpty());
+}
+
+TEST(ForestMap, NeighbourhoodQuery)
+{
+	CForestMap m;  // 20 m submaps
+	std::vector<Eigen::Vector3f> pts;
+	for (int x = -50; x <= 50; x += 10)
+		for (int y = -50; y <= 50; y += 10) pts.emplace_back(x + 0.5f, y + 0.5f, 1.f);
+	m.insertFeatures({}, pts);
+	std::vector<Eigen::Vector3f> e, p;
+	m.collectNear({0, 0, 0}, 5.0, e, p);
+	// A 5 m sphere at the origin touches the 4 occupied submaps covering
+	// [-20,20)^2 (z in [0,20)); they hold x,y in {-19.5,-9.5,0.5,10.5}.
+	const auto keys = m.submapsNear({0, 0, 0}, 5.0);
+	EXPECT_EQ(keys.size(), 4u);
+	EXPECT_EQ(p.size(), 16u);
+	for (const auto& q : p)
+		EXPECT_LT(q.head<2>().cwiseAbs().maxCoeff(), 20.f);
+	m.collectNear({0, 0, 0}, 60.0, e, p);
+	EXPECT_EQ(p.size(), pts.size());
+	m.collectNear({500, 0, 0}, 10.0, e, p);
+	EXPECT_TRUE(p.empty());
+}
+
+TEST(ForestMap, SerializationRoundTrip)
+{
+	map::ForestMapOptions o;
+	o.edge_voxel_m = 0.15;
+	CForestMap m(o);
+	m.insertFeatures({{1, 2, 3}, {1.01f, 2, 3}}, {{-30, 4, 0}, {5, 5, 5}});
+	map::TreeRecord t;
+	t.id = 7;
+	t.x = 1.5;
+	t.dbh_m = 0.31;
+	t.n_points = 250;
+	m.setTrees({t});
+
+	mrpt::io::CMemoryStream buf;
+	auto out = mrpt::serialization::archiveFrom(buf);
+	out << m;
+	buf.Seek(0);
+	auto in = mrpt::serialization::archiveFrom(buf);
+	auto obj = in.ReadObject();
+	auto back = std::dynamic_pointer_cast<CForestMap>(obj);
+	ASSERT_TRUE(back);
+	EXPECT_DOUBLE_EQ(back->options().edge_voxel_m, 0.15);
+	EXPECT_EQ(back->edgePointCount(), m.edgePointCount());
+	EXPECT_EQ(back->planarPointCount(), 2u);
+	EXPECT_EQ(back->submaps().size(), m.submaps().size());
+	ASSERT_EQ(back->trees().size(), 1u);
+	EXPECT_EQ(back->trees()[0].id, 7u);
+	EXPECT_DOUBLE_EQ(back->trees()[0].dbh_m, 0.31);
+	EXPECT_EQ(back->trees()[0].n_points, 250u);
+	std::vector<Eigen::Vector3f> e1, p1, e2, p2;
+	m.collectNear({0, 0, 0}, 100, e1, p1);
+	back->collectNear({0, 0, 0}, 100, e2, p2);
+	ASSERT_EQ(e1.size(), e2.size());
+	EXPECT_TRUE(e1[0].isApprox(e2[0]));
+}
+
+TEST(ForestMap, CreatedByMultiMetricMapFromIni)
+{
+	map::registerForestMapClasses();
+	const std::string ini = R"(
+[map]
+forestMap_count = 1
+[map_forestMap_00_creationOpts]
+submap_size_m = 10
+edge_voxel_m = 0.05
+planar_voxel_m = 0.25
+)";
+	auto cfg = core::TrackedConfig::fromText(ini, "mmm.ini");
+	mrpt::maps::TSetOfMetricMapInitializers inits;
+	inits.loadFromConfigFile(cfg, "map");
+	ASSERT_EQ(inits.size(), 1u);
+	mrpt::maps::CMultiMetricMap mm(inits);
+	ASSERT_EQ(mm.maps.size(), 1u);
+	auto fm = std::dynamic_pointer_cast<CForestMap>(mm.maps[0]);
+	ASSERT_TRUE(fm);
+	EXPECT_DOUBLE_EQ(fm->options().submap_size_m, 10);
+	EXPECT_DOUBLE_EQ(fm->options().edge_voxel_m, 0.05);
+	EXPECT_DOUBLE_EQ(fm->options().planar_voxel_m, 0.25);
+	// Every key of the INI was consumed by MRPT's loader + our options.
+	EXPECT_NO_THROW(cfg.checkNoUnknownKeys());
+
+	auto bad = core::TrackedConfig::fromText(
+		"[map]\nforestMap_count = 1\n[map_forestMap_00_creationOpts]\nedge_voxel_m = -1\n",
+		"bad.ini");
+	mrpt::maps::TSetOfMetricMapInitializers inits2;
+	EXPECT_THROW(inits2.loadFromConfigFile(bad, "map"), std::exception);
+}
+
+TEST(ForestMap, InsertsRealScanAndLikelihoodPeaksAtTruePose)
+{
+	io::RawlogReader r(std::string(FOREST_SLAM_SHARED_DIR) +
+					   "/data/mrpt/rot_scan_velodyne.rawlog");
+	auto obs = r.next();
+	auto scan = std::dynamic_pointer_cast<mrpt::obs::CObservationRotatingScan>(obs);
+	ASSERT_TRUE(scan);
+	scan->lidarModel = "VLP16";
+	CForestMap m;
+	ASSERT_TRUE(m.insertObservation(*scan, mrpt::poses::CPose3D()));
+	EXPECT_GT(m.edgePointCount(), 50u);
+	EXPECT_GT(m.planarPointCount(), 500u);
+	EXPECT_TRUE(m.canComputeObservationLikelihood(*scan));
+	const double at_true = m.computeObservationLikelihood(*scan, mrpt::poses::CPose3D());
+	const double shifted = m.computeObservationLikelihood(
+		*scan, mrpt::poses::CPose3D(0.6, 0.3, 0, 0.1, 0, 0));
+	EXPECT_GT(at_true, shifted + 10.0);
+
+	const auto prefix = (std::filesystem::temp_directory_path() /
+						 ("fs_map_" + std::to_string(::getpid())))
+							.string();
+	m.saveMetricMapRepresentationToFile(prefix);
+	EXPECT_GT(std::filesystem::file_size(prefix + "_edge.xyz"), 100u);
+	EXPECT_GT(std::filesystem::file_size(prefix + "_planar.xyz"), 1000u);
+	EXPECT_TRUE(std::filesystem::exists(prefix + "_trees.csv"));
+}

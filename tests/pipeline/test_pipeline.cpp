@@ -1,0 +1,156 @@
+#include "synthetic_scans.h"
+
+#include <forest_slam/io/rawlog_writer.h>
+#include <forest_slam/io/tum.h>
+#include <forest_slam/pipeline/mapping_job.h>
+#include <gtest/gtest.h>
+#include <mrpt/obs/CObservationIMU.h>
+
+#include <filesystem>
+#include <fstream>
+
+using namespace forest_slam;
+namespace fs = std::filesystem;
+
+namespace
+{
+/** x-spread of the rear wall points in the map: the rear wall is seen at
+ * both ends of the sweep, where motion distortion is largest. */
+double wallThickness(const map::CForestMap& m)
+{
+	std::vector<Eigen::Vector3f> e, p;
+	m.collectNear({0, 0, 0}, 100, e, p);
+	p.insert(p.end(), e.begin(), e.end());
+	double lo = 1e9, hi = -1e9;
+	for (const auto& q : p)
+		if (q.x() < -8 && q.z() > -1.0)
+		{
+			lo = std::min<double>(lo, q.x());
+			hi = std::max<double>(hi, q.x());
+		}
+	return hi - lo;
+}
+
+pipeline::MappingConfig trajectoryConfig(bool deskew)
+{
+	auto cfg = core::TrackedConfig::fromText(
+		std::string("[pipeline]\npose_source = trajectory\ndeskew = ") +
+			(deskew ? "true" : "false") +
+			"\n[forest_map]\nedge_voxel_m = 0.02\nplanar_voxel_m = 0.02\n",
+		"test.ini");
+	return pipeline::MappingConfig::load(cfg);
+}
+}  // namespace
+
+TEST(Pipeline, DeskewRemovesMotionDistortion)
+{
+	test_support::MovingSensorWorld w;  // 2 m/s: 0.2 m of motion per sweep
+	const auto gt = w.groundTruth(3);
+	double thickness[2];
+	for (int deskew = 0; deskew < 2; deskew++)
+	{
+		pipeline::MappingPipeline p(trajectoryConfig(deskew), gt);
+		p.process(std::make_shared<mrpt::obs::CObservationRotatingScan>(w.scan(0)));
+		ASSERT_EQ(p.stats().scans_mapped, 1u);
+		thickness[deskew] = wallThickness(p.forestMap());
+	}
+	EXPECT_GT(thickness[0], 0.15) << "without deskew the wall is smeared";
+	EXPECT_LT(thickness[1], 0.03) << "with deskew the wall is sharp";
+}
+
+TEST(Pipeline, TrajectoryStampsAreScanReferenceTimes)
+{
+	test_support::MovingSensorWorld w;
+	const auto gt = w.groundTruth(5);
+	pipeline::MappingPipeline p(trajectoryConfig(true), gt);
+	for (int k = 0; k < 4; k++)
+		p.process(std::make_shared<mrpt::obs::CObservationRotatingScan>(w.scan(k)));
+	ASSERT_EQ(p.trajectory().size(), 4u);
+	for (int k = 0; k < 4; k++)
+	{
+		EXPECT_NEAR(p.trajectory()[k].t_s, w.t0_s + k * w.period_s, 1e-6);
+		EXPECT_NEAR(p.trajectory()[k].pose.translation().x(), w.speed_mps * k * w.period_s, 1e-6);
+	}
+}
+
+TEST(Pipeline, BadScansAreCountedNotFatal)
+{
+	test_support::MovingSensorWorld w;
+	const auto gt = w.groundTruth(5);
+	pipeline::MappingPipeline p(trajectoryConfig(true), gt);
+	p.process(std::make_shared<mrpt::obs::CObservationRotatingScan>(w.scan(2)));
+	p.process(std::make_shared<mrpt::obs::CObservationRotatingScan>(w.scan(1)));  // backwards
+	auto empty = w.scan(3);
+	empty.rangeImage.setZero();
+	p.process(std::make_shared<mrpt::obs::CObservationRotatingScan>(empty));
+	auto unknown = w.scan(4);
+	unknown.lidarModel = "MYSTERY";
+	p.process(std::make_shared<mrpt::obs::CObservationRotatingScan>(unknown));
+	auto late = w.scan(40);	 // beyond the poses
+	p.process(std::make_shared<mrpt::obs::CObservationRotatingScan>(late));
+	auto imu = std::make_shared<mrpt::obs::CObservationIMU>();
+	imu->sensorLabel = "imu";
+	p.process(imu);
+	const auto& s = p.stats();
+	EXPECT_EQ(s.scans_in, 5u);
+	EXPECT_EQ(s.scans_mapped, 1u);
+	EXPECT_EQ(s.scans_out_of_order, 1u);
+	EXPECT_EQ(s.scans_empty, 1u);
+	EXPECT_EQ(s.scans_unreadable, 1u);
+	EXPECT_EQ(s.scans_outside_poses, 1u);
+	EXPECT_EQ(s.imu, 1u);
+}
+
+TEST(Pipeline, TrajectorySourceNeedsPoses)
+{
+	EXPECT_THROW(pipeline::MappingPipeline(trajectoryConfig(true)), std::invalid_argument);
+}
+
+TEST(MappingJob, DamagedRawlogStillWritesOutputs)
+{
+	const auto dir = fs::temp_directory_path() / ("fs_job_" + std::to_string(::getpid()));
+	fs::create_directories(dir);
+	test_support::MovingSensorWorld w;
+	const int n = 20;
+	io::writeTum((dir / "gt.tum").string(), w.groundTruth(n + 1));
+	const auto rawlog = (dir / "run.rawlog").string();
+	{
+		io::RawlogWriter wr(rawlog);
+		for (int k = 0; k < n; k++) wr.write(w.scan(k));
+		wr.close();
+	}
+	std::ofstream((dir / "map.ini").string())
+		<< "[pipeline]\npose_source = trajectory\n";
+
+	pipeline::MappingJob job;
+	job.config_path = (dir / "map.ini").string();
+	job.rawlog_path = rawlog;
+	job.poses_path = (dir / "gt.tum").string();
+	job.out_dir = (dir / "out_full").string();
+	job.progress_tty = 0;
+	const auto full = pipeline::runMapping(job);
+	EXPECT_FALSE(full.input_damaged);
+	EXPECT_EQ(full.stats.scans_mapped, static_cast<uint64_t>(n));
+	EXPECT_EQ(io::readTum(job.out_dir + "/trajectory.tum").size(), static_cast<size_t>(n));
+	const auto m = pipeline::loadForestMap(job.out_dir + "/forest.map");
+	EXPECT_GT(m->planarPointCount(), 1000u);
+
+	// Cut the rawlog at 60 %: processing stops at the damage, outputs hold
+	// the scans before it.
+	const auto cut = (dir / "cut.rawlog").string();
+	{
+		std::ifstream in(rawlog, std::ios::binary);
+		std::vector<char> buf(fs::file_size(rawlog) * 6 / 10);
+		in.read(buf.data(), buf.size());
+		std::ofstream(cut, std::ios::binary).write(buf.data(), buf.size());
+	}
+	job.rawlog_path = cut;
+	job.out_dir = (dir / "out_cut").string();
+	const auto part = pipeline::runMapping(job);
+	EXPECT_TRUE(part.input_damaged);
+	EXPECT_NE(part.damage_message.find(cut), std::string::npos);
+	EXPECT_GT(part.stats.scans_mapped, 5u);
+	EXPECT_LT(part.stats.scans_mapped, static_cast<uint64_t>(n));
+	EXPECT_EQ(io::readTum(job.out_dir + "/trajectory.tum").size(), part.stats.scans_mapped);
+	EXPECT_NO_THROW(pipeline::loadForestMap(job.out_dir + "/forest.map"));
+}
