@@ -10,6 +10,7 @@ PACKAGES=(
   librosbag-storage-dev libsensor-msgs-dev libroslz4-dev libsqlite3-dev
   libgeographiclib-dev zlib1g-dev
   libgtest-dev libgmock-dev libbenchmark-dev
+  libjsoncpp-dev
 )
 
 missing=()

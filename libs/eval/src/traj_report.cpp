@@ -25,6 +25,8 @@ std::string fmt(const char* f, ...)
 std::string cell(double v, int width, int decimals)
 {
 	if (!std::isfinite(v)) return fmt("%*s", width, "-");
+	// Values that round to zero print as 0, not "-0.00".
+	if (std::abs(v) < 0.5 * std::pow(10.0, -decimals)) v = 0;
 	return fmt("%*.*f", width, decimals, v);
 }
 
@@ -83,7 +85,7 @@ std::string closureRow(const std::string& label, const ReturnToStartError& c)
 std::string statsRow(const std::string& label, const SummaryStats& s,
 					 int decimals)
 {
-	return fmt("  %-16s%6zu", label.c_str(), s.count) + cell(s.mean, 10, decimals) +
+	return fmt("  %-18s%6zu", label.c_str(), s.count) + cell(s.mean, 10, decimals) +
 		   cell(s.std, 10, decimals) + cell(s.min, 10, decimals) +
 		   cell(s.max, 10, decimals) + cell(s.rmse, 10, decimals) + "\n";
 }
@@ -153,7 +155,7 @@ void printTrajReport(std::ostream& os, const TrajEvalInputs& in, const TrajRepor
 				  a.pairs.size(), a.est_outside_gt, a.est_in_gt_gap,
 				  r.options.association.max_gt_gap_s, r.gt_path_length_m);
 
-		os << "\nATE                       N      mean       std       min       "
+		os << "\nATE                         N      mean       std       min       "
 			  "max      RMSE\n";
 		os << statsRow("unaligned (m)", r.ate_unaligned.trans_m, 4);
 		os << statsRow("SE(3) aligned (m)", r.ate_aligned.trans_m, 4);
@@ -194,7 +196,7 @@ void printTrajReport(std::ostream& os, const TrajEvalInputs& in, const TrajRepor
 				  "%zu skipped (no fix within %.2f s)\n",
 				  r.options.gnss.interval_s, g.samples.size(), g.skipped_no_fix,
 				  r.options.gnss.max_fix_offset_s);
-		os << "                       N      mean       std       min       max"
+		os << "                         N      mean       std       min       max"
 			  "      RMSE\n";
 		os << statsRow("3D (m)", g.dist_3d_m, 3);
 		os << statsRow("horizontal (m)", g.dist_2d_m, 3);

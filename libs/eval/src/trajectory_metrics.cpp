@@ -145,8 +145,10 @@ RpeResult relativePoseError(const PosePairs& pairs, const RpeOptions& opts)
 		double lt = 0, lrot = 0;
 		for (size_t i = 0; i < pairs.size(); i++)
 		{
+			// The micrometre slack keeps a segment whose length is L up to
+			// the rounding of the cumulative sum.
 			const auto it = std::lower_bound(dist.begin() + static_cast<long>(i),
-											 dist.end(), dist[i] + L);
+											 dist.end(), dist[i] + L - 1e-6);
 			if (it == dist.end()) break;  // later starts are shorter still
 			const size_t j = static_cast<size_t>(it - dist.begin());
 			const Eigen::Isometry3d dg = pairs[i].gt.inverse() * pairs[j].gt;

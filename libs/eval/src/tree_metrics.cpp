@@ -169,7 +169,7 @@ TrajectoryCorridor::TrajectoryCorridor(const core::Trajectory& traj, double cell
 	cells_.erase(std::unique(cells_.begin(), cells_.end()), cells_.end());
 }
 
-double TrajectoryCorridor::distance(double x, double y) const
+double TrajectoryCorridor::nearbyDistance(double x, double y) const
 {
 	const Eigen::Vector2d p(x, y);
 	double best = std::numeric_limits<double>::infinity();
@@ -186,11 +186,22 @@ double TrajectoryCorridor::distance(double x, double y) const
 				best = std::min(best, pointSegmentDistance(p, s.a, s.b));
 			}
 		}
-	if (std::isfinite(best)) return best;
-	// Nothing within +-2 cells: the exact answer needs the full scan (rare:
-	// only far-away queries, which are outside any sensible range anyway).
+	return best;
+}
+
+bool TrajectoryCorridor::within(double x, double y) const
+{
+	return nearbyDistance(x, y) <= cell_m_;
+}
+
+double TrajectoryCorridor::distance(double x, double y) const
+{
+	// Only segments within cell_m are guaranteed to be in the scanned cells;
+	// a farther nearby hit may not be the nearest one.
+	double best = nearbyDistance(x, y);
+	if (best <= cell_m_) return best;
 	for (const auto& s : segments_)
-		best = std::min(best, pointSegmentDistance(p, s.a, s.b));
+		best = std::min(best, pointSegmentDistance(Eigen::Vector2d(x, y), s.a, s.b));
 	return best;
 }
 
@@ -242,7 +253,7 @@ TreeEvaluation evaluateTrees(const std::vector<TreeRecord>& gt,
 	if (use_range)
 		corridor = std::make_unique<TrajectoryCorridor>(traj, opts.max_range_m);
 	auto inRange = [&](double x, double y) {
-		return !use_range || corridor->distance(x, y) <= opts.max_range_m;
+		return !use_range || corridor->within(x, y);
 	};
 
 	for (const auto& t : gt)

@@ -24,6 +24,8 @@ std::string fmt(const char* f, ...)
 std::string cell(double v, int width, int decimals)
 {
 	if (!std::isfinite(v)) return fmt("%*s", width, "-");
+	// Values that round to zero print as 0, not "-0.00".
+	if (std::abs(v) < 0.5 * std::pow(10.0, -decimals)) v = 0;
 	return fmt("%*.*f", width, decimals, v);
 }
 
@@ -107,7 +109,7 @@ void printTreeReport(std::ostream& os, const TreeEvalInputs& in,
 	os << "\nPer region (paper Tables 3-4; DBH in cm)\n";
 	os << fmt("  %-12s %-10s %7s %15s %15s %8s %8s %8s %8s %8s\n", "region",
 			  "source", "# trees", "avg/std", "min/max", "RMSE", "MAE",
-			  "MAPE(%)", "recall", "precis.");
+			  "MAPE(%)", "recall%", "precis%");
 	for (const auto& rs : ev.regions)
 	{
 		os << fmt("  %-12s %-10s %7zu %15s %15s\n", rs.region.name.c_str(),
@@ -117,8 +119,8 @@ void printTreeReport(std::ostream& os, const TreeEvalInputs& in,
 				  rs.estimated_count, avgStd(rs.estimated_dbh_m).c_str(),
 				  minMax(rs.estimated_dbh_m).c_str())
 		   << cell(100 * rs.dbh.rmse_m, 9, 2) << cell(100 * rs.dbh.mae_m, 9, 2)
-		   << cell(rs.dbh.mape_pct, 9, 2) << cell(100 * rs.recall, 8, 1) << "%"
-		   << cell(100 * rs.precision, 8, 1) << "%\n";
+		   << cell(rs.dbh.mape_pct, 9, 2) << cell(100 * rs.recall, 9, 1)
+		   << cell(100 * rs.precision, 9, 1) << "\n";
 	}
 }
 

@@ -69,9 +69,14 @@ class TrajectoryCorridor
 {
    public:
 	TrajectoryCorridor(const core::Trajectory& traj, double cell_m);
+	/** Exact distance (scans every segment when none is within cell_m). */
 	double distance(double x, double y) const;
+	/** distance(x, y) <= cell_m, looking only at nearby grid cells. */
+	bool within(double x, double y) const;
 
    private:
+	/** Nearest segment among those registered in the +-2 nearby cells. */
+	double nearbyDistance(double x, double y) const;
 	struct Segment
 	{
 		Eigen::Vector2d a, b;
