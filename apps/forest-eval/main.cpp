@@ -20,7 +20,7 @@ namespace
 using namespace forest_slam;
 
 const char* kMainUsage =
-	R"(Usage: forest-eval <command> [options]
+    R"(Usage: forest-eval <command> [options]
 
 Commands:
   traj    trajectory metrics: ATE, RPE, vertical drift, return-to-start error
@@ -34,7 +34,7 @@ overlap, cannot write output), 2 usage error. Definitions: doc/evaluation.md.
 )";
 
 const char* kTrajUsage =
-	R"(Usage: forest-eval traj --est EST.tum [--gt GT.tum] [--gnss GNSS_FILE]
+    R"(Usage: forest-eval traj --est EST.tum [--gt GT.tum] [--gnss GNSS_FILE]
                         [--json FILE] [--svg FILE] [options]
 
 Inputs (TUM: "t x y z qx qy qz qw" per line, '#' comments):
@@ -58,7 +58,7 @@ Options:
 )";
 
 const char* kTreesUsage =
-	R"(Usage: forest-eval trees --gt GT.csv --est EST.csv [--max-match-m 0.5]
+    R"(Usage: forest-eval trees --gt GT.csv --est EST.csv [--max-match-m 0.5]
                          [--min-dbh-m 0.10] [--max-range-m R --traj EST.tum]
                          [--regions FILE] [--json FILE] [--svg FILE]
 
@@ -99,7 +99,7 @@ struct ParsedArgs
 
 /** Every option takes one value ("--opt V" or "--opt=V"), except --help. */
 ParsedArgs parseArgs(int argc, char** argv, int first,
-					 const std::set<std::string>& known)
+                     const std::set<std::string>& known)
 {
 	ParsedArgs a;
 	for (int i = first; i < argc; i++)
@@ -124,10 +124,12 @@ ParsedArgs parseArgs(int argc, char** argv, int first,
 		if (!known.count(arg)) throw UsageError("unknown option '" + arg + "'");
 		if (!has_value)
 		{
-			if (i + 1 >= argc) throw UsageError("option " + arg + " needs a value");
+			if (i + 1 >= argc)
+				throw UsageError("option " + arg + " needs a value");
 			value = argv[++i];
 		}
-		if (value.empty()) throw UsageError("option " + arg + " has an empty value");
+		if (value.empty())
+			throw UsageError("option " + arg + " has an empty value");
 		if (!a.values.emplace(arg, value).second)
 			throw UsageError("option " + arg + " given twice");
 	}
@@ -135,20 +137,20 @@ ParsedArgs parseArgs(int argc, char** argv, int first,
 }
 
 double numberArg(const ParsedArgs& a, const std::string& k, double def,
-				 bool strictly_positive)
+                 bool strictly_positive)
 {
 	if (!a.has(k)) return def;
 	const auto v = eval::parseFiniteNumber(a.get(k));
 	if (!v) throw UsageError(k + ": expected a number, got '" + a.get(k) + "'");
 	if (strictly_positive ? !(*v > 0) : !(*v >= 0))
 		throw UsageError(k + ": expected a value " +
-						 (strictly_positive ? "> 0" : ">= 0") + ", got '" +
-						 a.get(k) + "'");
+		                 (strictly_positive ? "> 0" : ">= 0") + ", got '" +
+		                 a.get(k) + "'");
 	return *v;
 }
 
 std::vector<double> listArg(const ParsedArgs& a, const std::string& k,
-							const std::vector<double>& def)
+                            const std::vector<double>& def)
 {
 	if (!a.has(k)) return def;
 	std::vector<double> out;
@@ -157,12 +159,14 @@ std::vector<double> listArg(const ParsedArgs& a, const std::string& k,
 	while (true)
 	{
 		const auto comma = s.find(',', start);
-		const std::string item = s.substr(
-			start, comma == std::string::npos ? std::string::npos : comma - start);
+		const std::string item =
+		    s.substr(start, comma == std::string::npos ? std::string::npos
+		                                               : comma - start);
 		const auto v = eval::parseFiniteNumber(item);
 		if (!v || !(*v > 0))
-			throw UsageError(k + ": expected comma-separated numbers > 0, got '" +
-							 item + "' in '" + s + "'");
+			throw UsageError(k +
+			                 ": expected comma-separated numbers > 0, got '" +
+			                 item + "' in '" + s + "'");
 		out.push_back(*v);
 		if (comma == std::string::npos) break;
 		start = comma + 1;
@@ -171,8 +175,8 @@ std::vector<double> listArg(const ParsedArgs& a, const std::string& k,
 }
 
 void writeOutputs(const ParsedArgs& a,
-				  const std::function<void(std::ostream&)>& json,
-				  const std::function<void(std::ostream&)>& svg)
+                  const std::function<void(std::ostream&)>& json,
+                  const std::function<void(std::ostream&)>& svg)
 {
 	if (a.has("--json")) core::writeFileAtomically(a.get("--json"), json);
 	if (a.has("--svg")) core::writeFileAtomically(a.get("--svg"), svg);
@@ -180,10 +184,10 @@ void writeOutputs(const ParsedArgs& a,
 
 int runTraj(int argc, char** argv)
 {
-	const auto a = parseArgs(argc, argv, 2,
-							 {"--gt", "--est", "--gnss", "--json", "--svg",
-							  "--max-gap-s", "--rpe-lengths-m",
-							  "--gnss-interval-s", "--gnss-max-offset-s"});
+	const auto a = parseArgs(
+	    argc, argv, 2,
+	    {"--gt", "--est", "--gnss", "--json", "--svg", "--max-gap-s",
+	     "--rpe-lengths-m", "--gnss-interval-s", "--gnss-max-offset-s"});
 	if (a.help)
 	{
 		std::cout << kTrajUsage;
@@ -192,12 +196,12 @@ int runTraj(int argc, char** argv)
 	if (!a.has("--est")) throw UsageError("--est is required");
 	eval::TrajEvalOptions opts;
 	opts.association.max_gt_gap_s =
-		numberArg(a, "--max-gap-s", opts.association.max_gt_gap_s, true);
+	    numberArg(a, "--max-gap-s", opts.association.max_gt_gap_s, true);
 	opts.rpe.lengths_m = listArg(a, "--rpe-lengths-m", opts.rpe.lengths_m);
 	opts.gnss.interval_s =
-		numberArg(a, "--gnss-interval-s", opts.gnss.interval_s, true);
+	    numberArg(a, "--gnss-interval-s", opts.gnss.interval_s, true);
 	opts.gnss.max_fix_offset_s =
-		numberArg(a, "--gnss-max-offset-s", opts.gnss.max_fix_offset_s, false);
+	    numberArg(a, "--gnss-max-offset-s", opts.gnss.max_fix_offset_s, false);
 
 	eval::TrajEvalInputs in;
 	in.est_path = a.get("--est");
@@ -215,17 +219,17 @@ int runTraj(int argc, char** argv)
 	const auto report = eval::evaluateTrajectory(in, opts);
 	eval::printTrajReport(std::cout, in, report);
 	writeOutputs(
-		a, [&](std::ostream& os) { eval::writeTrajJson(os, in, report); },
-		[&](std::ostream& os) { eval::writeTrajSvg(os, in, report); });
+	    a, [&](std::ostream& os) { eval::writeTrajJson(os, in, report); },
+	    [&](std::ostream& os) { eval::writeTrajSvg(os, in, report); });
 	return 0;
 }
 
 int runTrees(int argc, char** argv)
 {
-	const auto a = parseArgs(argc, argv, 2,
-							 {"--gt", "--est", "--max-match-m", "--min-dbh-m",
-							  "--max-range-m", "--traj", "--regions", "--json",
-							  "--svg"});
+	const auto a =
+	    parseArgs(argc, argv, 2,
+	              {"--gt", "--est", "--max-match-m", "--min-dbh-m",
+	               "--max-range-m", "--traj", "--regions", "--json", "--svg"});
 	if (a.help)
 	{
 		std::cout << kTreesUsage;
@@ -250,8 +254,9 @@ int runTrees(int argc, char** argv)
 		in.traj_path = a.get("--traj");
 		in.traj = io::readTum(in.traj_path);
 		if (in.traj.empty())
-			throw std::runtime_error("trajectory '" + in.traj_path +
-									 "' has no poses, cannot apply --max-range-m");
+			throw std::runtime_error(
+			    "trajectory '" + in.traj_path +
+			    "' has no poses, cannot apply --max-range-m");
 	}
 	if (a.has("--regions"))
 	{
@@ -259,13 +264,13 @@ int runTrees(int argc, char** argv)
 		in.regions = eval::readRegionsCsv(in.regions_path);
 	}
 	const auto ev = eval::evaluateTrees(
-		in.gt, in.est, opts, in.traj,
-		in.regions.empty() ? std::vector<eval::Region>{eval::allRegion()}
-						   : in.regions);
+	    in.gt, in.est, opts, in.traj,
+	    in.regions.empty() ? std::vector<eval::Region>{eval::allRegion()}
+	                       : in.regions);
 	eval::printTreeReport(std::cout, in, opts, ev);
 	writeOutputs(
-		a, [&](std::ostream& os) { eval::writeTreeJson(os, in, opts, ev); },
-		[&](std::ostream& os) { eval::writeTreeSvg(os, in, opts, ev); });
+	    a, [&](std::ostream& os) { eval::writeTreeJson(os, in, opts, ev); },
+	    [&](std::ostream& os) { eval::writeTreeSvg(os, in, opts, ev); });
 	return 0;
 }
 }  // namespace
@@ -283,14 +288,16 @@ int main(int argc, char** argv)
 		if (cmd == "traj") return runTraj(argc, argv);
 		if (cmd == "trees") return runTrees(argc, argv);
 		throw UsageError(cmd.empty() ? "missing command (traj or trees)"
-									 : "unknown command '" + cmd + "'");
+		                             : "unknown command '" + cmd + "'");
 	}
 	catch (const UsageError& e)
 	{
-		std::cerr << "forest-eval" << (cmd == "traj" || cmd == "trees" ? " " + cmd : "")
-				  << ": usage error: " << e.what() << "\n"
-				  << "Run 'forest-eval" << (cmd == "traj" || cmd == "trees" ? " " + cmd : "")
-				  << " --help' for usage.\n";
+		std::cerr << "forest-eval"
+		          << (cmd == "traj" || cmd == "trees" ? " " + cmd : "")
+		          << ": usage error: " << e.what() << "\n"
+		          << "Run 'forest-eval"
+		          << (cmd == "traj" || cmd == "trees" ? " " + cmd : "")
+		          << " --help' for usage.\n";
 		return 2;
 	}
 	catch (const std::exception& e)

@@ -110,7 +110,8 @@ TEST(MatchGated, MaximisesPairsBeforeDistance)
 TEST(MatchGated, GateAndComponents)
 {
 	const std::vector<Eigen::Vector2d> gt = {{0, 0}, {10, 10}, {-50, 3}};
-	const std::vector<Eigen::Vector2d> est = {{10.5, 10}, {0.51, 0}, {-50, 3.5}};
+	const std::vector<Eigen::Vector2d> est = {
+	    {10.5, 10}, {0.51, 0}, {-50, 3.5}};
 	const auto m = matchGated(gt, est, 0.5);
 	// {0,0}-{0.51,0} is outside the gate; {10,10}-{10.5,10} at exactly 0.5
 	// is inside (gate inclusive).

@@ -17,8 +17,9 @@ TEST(JsonWriter, NestingNullsAndEscapes)
 	j.key("empty").beginObject().endObject();
 	j.endObject();
 	EXPECT_EQ(os.str(),
-			  "{\n  \"a\": 1.5,\n  \"nan\": null,\n  \"s\": \"q\\\"\\\\\\n\",\n"
-			  "  \"arr\": [\n    1,\n    true,\n    null\n  ],\n  \"empty\": {}\n}\n");
+	          "{\n  \"a\": 1.5,\n  \"nan\": null,\n  \"s\": \"q\\\"\\\\\\n\",\n"
+	          "  \"arr\": [\n    1,\n    true,\n    null\n  ],\n  \"empty\": "
+	          "{}\n}\n");
 	std::ostringstream bad;
 	JsonWriter b(bad);
 	b.beginObject();

@@ -14,7 +14,7 @@ namespace
 std::string writeTemp(const std::string& name, const std::string& content)
 {
 	const auto dir = std::filesystem::temp_directory_path() /
-					 ("forest_eval_unit_" + std::to_string(::getpid()));
+	                 ("forest_eval_unit_" + std::to_string(::getpid()));
 	std::filesystem::create_directories(dir);
 	const auto p = (dir / name).string();
 	std::ofstream(p) << content;
@@ -54,11 +54,11 @@ TEST(Stats, HandComputed)
 TEST(Csv, ColumnsByNameAndErrors)
 {
 	const auto p = writeTemp("a.csv",
-							 "# comment\n"
-							 "id, X ,y,dbh_m,extra\n"
-							 "\n"
-							 "t1,1.5,2,0.3,foo\n"
-							 "\"t2\",3,4e0,0.25,bar\n");
+	                         "# comment\n"
+	                         "id, X ,y,dbh_m,extra\n"
+	                         "\n"
+	                         "t1,1.5,2,0.3,foo\n"
+	                         "\"t2\",3,4e0,0.25,bar\n");
 	const auto t = CsvTable::read(p);
 	EXPECT_EQ(t.rows(), 2u);
 	EXPECT_EQ(t.column("x"), 1u);
@@ -66,25 +66,27 @@ TEST(Csv, ColumnsByNameAndErrors)
 	EXPECT_EQ(t.cell(1, 0), "t2");
 	EXPECT_DOUBLE_EQ(t.number(1, t.column("y")), 4.0);
 	EXPECT_FALSE(t.findColumn("z").has_value());
-	EXPECT_NE(errorOf([&] { t.column("z"); }).find(p + ":2: header has no column 'z'"),
-			  std::string::npos);
+	EXPECT_NE(errorOf([&] { t.column("z"); })
+	              .find(p + ":2: header has no column 'z'"),
+	          std::string::npos);
 
 	const auto bad = writeTemp("bad.csv", "id,x,y\n1,2,3\n2,abc,3\n");
 	const auto tb = CsvTable::read(bad);
 	const auto msg = errorOf([&] { tb.number(1, 1); });
 	EXPECT_NE(msg.find(bad + ":3:2 (x): expected a finite number, got 'abc'"),
-			  std::string::npos)
-		<< msg;
+	          std::string::npos)
+	    << msg;
 
 	const auto ragged = writeTemp("ragged.csv", "id,x,y\n1,2,3\n2,3\n");
-	EXPECT_NE(errorOf([&] { CsvTable::read(ragged); }).find(ragged + ":3: expected 3"),
-			  std::string::npos);
+	EXPECT_NE(errorOf([&] { CsvTable::read(ragged); })
+	              .find(ragged + ":3: expected 3"),
+	          std::string::npos);
 	const auto dup = writeTemp("dup.csv", "id,x,X\n");
 	EXPECT_NE(errorOf([&] { CsvTable::read(dup); }).find("appears twice"),
-			  std::string::npos);
+	          std::string::npos);
 	EXPECT_NE(errorOf([&] { CsvTable::read("/nonexistent/f.csv"); })
-				  .find("cannot open '/nonexistent/f.csv'"),
-			  std::string::npos);
+	              .find("cannot open '/nonexistent/f.csv'"),
+	          std::string::npos);
 	EXPECT_FALSE(parseFiniteNumber("1.5x"));
 	EXPECT_FALSE(parseFiniteNumber("nan"));
 	EXPECT_FALSE(parseFiniteNumber(""));
@@ -97,15 +99,16 @@ TEST(PositionTrack, CsvAndTum)
 	const auto a = readPositionTrack(csv);
 	ASSERT_EQ(a.size(), 2u);
 	EXPECT_EQ(a[1].p, Eigen::Vector3d(4, 5, 6));
-	const auto tum = writeTemp("g.tum", "# t x y z qx qy qz qw\n0 1 2 3 0 0 0 1\n");
+	const auto tum =
+	    writeTemp("g.tum", "# t x y z qx qy qz qw\n0 1 2 3 0 0 0 1\n");
 	const auto b = readPositionTrack(tum);
 	ASSERT_EQ(b.size(), 1u);
 	EXPECT_EQ(b[0].p, Eigen::Vector3d(1, 2, 3));
 	const auto back = writeTemp("back.csv", "t,x,y,z\n1,0,0,0\n0.5,0,0,0\n");
 	EXPECT_NE(errorOf([&] { readPositionTrack(back); })
-				  .find(back + ":3:1 (t): time goes backwards"),
-			  std::string::npos);
+	              .find(back + ":3:1 (t): time goes backwards"),
+	          std::string::npos);
 	const auto nocol = writeTemp("nocol.csv", "time,x,y,z\n1,0,0,0\n");
 	EXPECT_NE(errorOf([&] { readPositionTrack(nocol); }).find("no column 't'"),
-			  std::string::npos);
+	          std::string::npos);
 }

@@ -10,16 +10,17 @@ namespace
 {
 constexpr double kDeg = M_PI / 180.0;
 
-core::StampedPose pose(double t, double x, double y, double z, double yaw_deg = 0,
-					   double pitch_deg = 0, double roll_deg = 0)
+core::StampedPose pose(double t, double x, double y, double z,
+                       double yaw_deg = 0, double pitch_deg = 0,
+                       double roll_deg = 0)
 {
 	core::StampedPose p;
 	p.t_s = t;
 	p.pose.linear() =
-		(Eigen::AngleAxisd(yaw_deg * kDeg, Eigen::Vector3d::UnitZ()) *
-		 Eigen::AngleAxisd(pitch_deg * kDeg, Eigen::Vector3d::UnitY()) *
-		 Eigen::AngleAxisd(roll_deg * kDeg, Eigen::Vector3d::UnitX()))
-			.toRotationMatrix();
+	    (Eigen::AngleAxisd(yaw_deg * kDeg, Eigen::Vector3d::UnitZ()) *
+	     Eigen::AngleAxisd(pitch_deg * kDeg, Eigen::Vector3d::UnitY()) *
+	     Eigen::AngleAxisd(roll_deg * kDeg, Eigen::Vector3d::UnitX()))
+	        .toRotationMatrix();
 	p.pose.translation() = Eigen::Vector3d(x, y, z);
 	return p;
 }
@@ -32,8 +33,8 @@ core::Trajectory square()
 	for (int i = 0; i < 40; i++)
 	{
 		const int side = i / 10, k = i % 10;
-		const double xy[4][2] = {{double(k), 0}, {10, double(k)},
-								 {10.0 - k, 10}, {0, 10.0 - k}};
+		const double xy[4][2] = {
+		    {double(k), 0}, {10, double(k)}, {10.0 - k, 10}, {0, 10.0 - k}};
 		t.push_back(pose(i, xy[side][0], xy[side][1], 0, 90.0 * side));
 	}
 	return t;
@@ -49,7 +50,7 @@ TEST(Association, InterpolatesAndCountsOutsideAndGaps)
 {
 	core::Trajectory gt, est;
 	for (int i = 0; i <= 10; i++)
-		if (i < 6 || i > 7) gt.push_back(pose(i, i, 0, 0));	// hole 5 s .. 8 s
+		if (i < 6 || i > 7) gt.push_back(pose(i, i, 0, 0));  // hole 5 s .. 8 s
 	for (int i = 0; i < 12; i++) est.push_back(pose(i + 0.5, 0, 0, 0));
 	const auto a = associateByInterpolation(gt, est);
 	// 0.5..4.5 and 8.5, 9.5 pair; 5.5, 6.5, 7.5 in the gap; 10.5, 11.5 outside.
@@ -76,7 +77,7 @@ TEST(Association, NoOverlapIsAnError)
 	catch (const std::runtime_error& e)
 	{
 		EXPECT_NE(std::string(e.what()).find("do not overlap in time"),
-				  std::string::npos);
+		          std::string::npos);
 	}
 }
 
@@ -113,13 +114,14 @@ TEST(Ate, RigidlyMovedSquareAlignsToZero)
 {
 	const auto gt = square();
 	Eigen::Isometry3d M = Eigen::Isometry3d::Identity();
-	M.linear() = Eigen::AngleAxisd(30 * kDeg, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+	M.linear() = Eigen::AngleAxisd(30 * kDeg, Eigen::Vector3d::UnitZ())
+	                 .toRotationMatrix();
 	M.translation() = Eigen::Vector3d(5, -2, 1);
 	auto est = gt;
 	for (auto& p : est) p.pose = M * p.pose;
 	const auto pairs = pairsOf(gt, est);
 	const auto raw = absoluteTrajectoryError(pairs, false);
-	EXPECT_NEAR(raw.rot_deg.mean, 30.0, 1e-9);	// every pose rotated by 30 deg
+	EXPECT_NEAR(raw.rot_deg.mean, 30.0, 1e-9);  // every pose rotated by 30 deg
 	EXPECT_NEAR(raw.rot_deg.std, 0.0, 1e-6);
 	EXPECT_GT(raw.trans_m.rmse, 1.0);
 	const auto al = absoluteTrajectoryError(pairs, true);
@@ -179,7 +181,7 @@ TEST(Rpe, TooShortGivesNoSegments)
 	RpeOptions o;
 	o.lengths_m = {3};
 	const auto r3 = relativePoseError(pairsOf(gt, est), o);
-	EXPECT_EQ(r3.segments, 7u);	// starts 0..6
+	EXPECT_EQ(r3.segments, 7u);  // starts 0..6
 	EXPECT_NEAR(r3.trans_err_pct, 0.0, 1e-12);
 }
 
@@ -228,7 +230,8 @@ TEST(ReturnToStart, FramesOfTheComponents)
 {
 	// First heading 90 deg: a 1 m step north is 1 m along the first heading
 	// (x), and the yaw error is the 2 deg difference.
-	const auto e = returnToStartError(pose(0, 5, 5, 1, 90), pose(1, 5, 6, 1.2, 92));
+	const auto e =
+	    returnToStartError(pose(0, 5, 5, 1, 90), pose(1, 5, 6, 1.2, 92));
 	EXPECT_NEAR(e.x_m, 1.0, 1e-12);
 	EXPECT_NEAR(e.y_m, 0.0, 1e-12);
 	EXPECT_NEAR(e.z_m, 0.2, 1e-12);
@@ -239,12 +242,13 @@ TEST(ReturnToStart, FramesOfTheComponents)
 	// A sensor mounted with 20 deg roll: the 1 m altitude error stays z
 	// (gravity), not split along the tilted sensor axes.
 	const auto t = returnToStartError(pose(0, 0, 0, 0, 0, 0, 20),
-									  pose(1, 0, 0, 1, 0, 0, 20));
+	                                  pose(1, 0, 0, 1, 0, 0, 20));
 	EXPECT_NEAR(t.z_m, 1.0, 1e-12);
 	EXPECT_NEAR(t.y_m, 0.0, 1e-12);
 	EXPECT_NEAR(t.angle_deg, 0.0, 1e-6);
 
-	core::Trajectory traj = {pose(0, 0, 0, 0), pose(1, 3, 0, 0), pose(2, 0, 0, 4)};
+	core::Trajectory traj = {pose(0, 0, 0, 0), pose(1, 3, 0, 0),
+	                         pose(2, 0, 0, 4)};
 	EXPECT_NEAR(returnToStartError(traj).total_trans_m, 4.0, 1e-12);
 	EXPECT_THROW(returnToStartError(core::Trajectory{}), std::runtime_error);
 }
@@ -253,9 +257,9 @@ TEST(ReturnToStart, RelativeToGtClosure)
 {
 	// GT itself ends 0.1 m higher and 1 deg left; the estimate 0.4 m and
 	// 3 deg: its own error beyond the GT's is 0.3 m and 2 deg.
-	const auto e = returnToStartErrorVsGt(pose(0, 0, 0, 0), pose(9, 0, 0, 0.4, 3),
-										  pose(0, 0, 0, 0).pose,
-										  pose(9, 0, 0, 0.1, 1).pose);
+	const auto e = returnToStartErrorVsGt(
+	    pose(0, 0, 0, 0), pose(9, 0, 0, 0.4, 3), pose(0, 0, 0, 0).pose,
+	    pose(9, 0, 0, 0.1, 1).pose);
 	EXPECT_NEAR(e.z_m, 0.3, 1e-12);
 	EXPECT_NEAR(e.yaw_deg, 2.0, 1e-9);
 	EXPECT_NEAR(e.total_trans_m, 0.3, 1e-12);
@@ -269,9 +273,10 @@ TEST(GnssDrift, EveryTenSecondsWithDropout)
 	for (int i = 0; i <= 350; i++) est.push_back(pose(0.1 * i, 0.1 * i, 0, 0));
 	PositionTrack gnss;
 	for (int t = 0; t <= 35; t++)
-		if (t != 20) gnss.push_back({double(t), Eigen::Vector3d(t, 0.1 * t, 2)});
+		if (t != 20)
+			gnss.push_back({double(t), Eigen::Vector3d(t, 0.1 * t, 2)});
 	const auto r = gnssDrift(est, gnss);
-	EXPECT_EQ(r.sample_times, 4u);	// 0, 10, 20, 30
+	EXPECT_EQ(r.sample_times, 4u);  // 0, 10, 20, 30
 	EXPECT_EQ(r.skipped_no_fix, 1u);
 	ASSERT_EQ(r.samples.size(), 3u);
 	// Horizontal 0, 1, 3 m: mean 4/3, sample std sqrt(7/3).
@@ -280,7 +285,8 @@ TEST(GnssDrift, EveryTenSecondsWithDropout)
 	EXPECT_NEAR(r.dist_2d_m.min, 0.0, 1e-9);
 	EXPECT_NEAR(r.dist_2d_m.max, 3.0, 1e-9);
 	// 3D: 2, sqrt(5), sqrt(13).
-	EXPECT_NEAR(r.dist_3d_m.mean, (2 + std::sqrt(5.0) + std::sqrt(13.0)) / 3, 1e-9);
+	EXPECT_NEAR(r.dist_3d_m.mean, (2 + std::sqrt(5.0) + std::sqrt(13.0)) / 3,
+	            1e-9);
 	EXPECT_NEAR(r.dist_3d_m.min, 2.0, 1e-9);
 	EXPECT_NEAR(r.dist_3d_m.max, std::sqrt(13.0), 1e-9);
 
@@ -288,9 +294,9 @@ TEST(GnssDrift, EveryTenSecondsWithDropout)
 	// time (x = 10.4, so only the 0.5 m northing remains); one 0.7 s late is
 	// a dropout.
 	PositionTrack late = {{0.0, Eigen::Vector3d(0, 0, 0)},
-						  {10.4, Eigen::Vector3d(10.4, 0.5, 0)},
-						  {20.7, Eigen::Vector3d(20.7, 0, 0)},
-						  {30.0, Eigen::Vector3d(30, 0, 0)}};
+	                      {10.4, Eigen::Vector3d(10.4, 0.5, 0)},
+	                      {20.7, Eigen::Vector3d(20.7, 0, 0)},
+	                      {30.0, Eigen::Vector3d(30, 0, 0)}};
 	const auto l = gnssDrift(est, late);
 	EXPECT_EQ(l.sample_times, 4u);
 	EXPECT_EQ(l.skipped_no_fix, 1u);
@@ -306,7 +312,8 @@ TEST(GnssDrift, AlignedFiguresAndErrors)
 	for (int i = 0; i <= 60; i++)
 		est.push_back(pose(i, i, 0.02 * i * i, 0.1 * i));
 	Eigen::Isometry3d M = Eigen::Isometry3d::Identity();
-	M.linear() = Eigen::AngleAxisd(45 * kDeg, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+	M.linear() = Eigen::AngleAxisd(45 * kDeg, Eigen::Vector3d::UnitZ())
+	                 .toRotationMatrix();
 	M.translation() = Eigen::Vector3d(100, 200, 3);
 	PositionTrack gnss;
 	for (const auto& p : est) gnss.push_back({p.t_s, M * p.pose.translation()});
@@ -315,7 +322,8 @@ TEST(GnssDrift, AlignedFiguresAndErrors)
 	EXPECT_GT(r.dist_3d_m.min, 100.0);
 	EXPECT_NEAR(r.aligned_dist_3d_m.max, 0.0, 1e-6);
 
-	PositionTrack later = {{100, Eigen::Vector3d::Zero()}, {101, Eigen::Vector3d::Zero()}};
+	PositionTrack later = {{100, Eigen::Vector3d::Zero()},
+	                       {101, Eigen::Vector3d::Zero()}};
 	EXPECT_THROW(gnssDrift(est, later), std::runtime_error);
 }
 
@@ -326,5 +334,6 @@ TEST(Angles, RollPitchYawConvention)
 	EXPECT_NEAR(rpy.x(), 100, 1e-9);
 	EXPECT_NEAR(rpy.y(), 30, 1e-9);
 	EXPECT_NEAR(rpy.z(), -170, 1e-9);
-	EXPECT_NEAR(rotationAngleDeg(pose(0, 0, 0, 0, 0, 0, 179).pose.linear()), 179, 1e-9);
+	EXPECT_NEAR(rotationAngleDeg(pose(0, 0, 0, 0, 0, 0, 179).pose.linear()),
+	            179, 1e-9);
 }

@@ -12,7 +12,7 @@ using namespace forest_slam::eval;
 namespace
 {
 TreeRecord tree(const std::string& id, double x, double y, double dbh,
-				bool sapling = false)
+                bool sapling = false)
 {
 	TreeRecord t;
 	t.id = id;
@@ -36,7 +36,7 @@ core::Trajectory lineTraj(double x0, double x1)
 std::string writeTemp(const std::string& name, const std::string& content)
 {
 	const auto dir = std::filesystem::temp_directory_path() /
-					 ("forest_eval_trees_" + std::to_string(::getpid()));
+	                 ("forest_eval_trees_" + std::to_string(::getpid()));
 	std::filesystem::create_directories(dir);
 	const auto p = (dir / name).string();
 	std::ofstream(p) << content;
@@ -59,19 +59,19 @@ std::string errorOf(const std::function<void()>& f)
 // Six GT trees and six estimates covering every status (see each comment).
 std::vector<TreeRecord> scenarioGt()
 {
-	return {tree("g0", 0, 0, 0.30),		   // matched by e0
-			tree("g1", 5, 0, 0.40),		   // matched by e1
-			tree("g2", 10, 0, 0.25),	   // missed
-			tree("g3", 0, 5, 0.08),		   // below 10 cm, estimated by e2
-			tree("g4", 5, 5, 0.05, true),  // sapling
-			tree("g5", 100, 0, 0.50)};	   // 90 m from the trajectory
+	return {tree("g0", 0, 0, 0.30),        // matched by e0
+	        tree("g1", 5, 0, 0.40),        // matched by e1
+	        tree("g2", 10, 0, 0.25),       // missed
+	        tree("g3", 0, 5, 0.08),        // below 10 cm, estimated by e2
+	        tree("g4", 5, 5, 0.05, true),  // sapling
+	        tree("g5", 100, 0, 0.50)};     // 90 m from the trajectory
 }
 
 std::vector<TreeRecord> scenarioEst()
 {
-	return {tree("e0", 0.1, 0, 0.32), tree("e1", 5, 0.2, 0.36),
-			tree("e2", 0, 5.1, 0.09), tree("e3", 3, 3, 0.20),
-			tree("e4", 100, 0.1, 0.45), tree("e5", 60, 0, 0.30)};
+	return {tree("e0", 0.1, 0, 0.32),   tree("e1", 5, 0.2, 0.36),
+	        tree("e2", 0, 5.1, 0.09),   tree("e3", 3, 3, 0.20),
+	        tree("e4", 100, 0.1, 0.45), tree("e5", 60, 0, 0.30)};
 }
 }  // namespace
 
@@ -80,7 +80,7 @@ TEST(DbhErrors, PaperFormulasByHand)
 	// x - y = +0.02, -0.02, +0.01
 	const auto e = dbhErrors({0.22, 0.30, 0.41}, {0.20, 0.32, 0.40});
 	EXPECT_EQ(e.count, 3u);
-	EXPECT_NEAR(e.rmse_m, std::sqrt(3e-4), 1e-12);	  // sqrt(9e-4 / 3)
+	EXPECT_NEAR(e.rmse_m, std::sqrt(3e-4), 1e-12);  // sqrt(9e-4 / 3)
 	EXPECT_NEAR(e.mae_m, 0.05 / 3, 1e-12);
 	EXPECT_NEAR(e.mape_pct, 6.25, 1e-9);  // (10 + 6.25 + 2.5) % / 3
 	EXPECT_NEAR(e.bias_m, 0.01 / 3, 1e-12);
@@ -99,7 +99,7 @@ TEST(DetectionScores, ByHand)
 	detectionScores(93, 2, 1, r, p, f);
 	EXPECT_NEAR(r, 93.0 / 95, 1e-12);
 	EXPECT_NEAR(p, 93.0 / 94, 1e-12);
-	EXPECT_NEAR(f, 2 * 93.0 / (2 * 93 + 2 + 1), 1e-12);	 // 2TP/(2TP+FN+FP)
+	EXPECT_NEAR(f, 2 * 93.0 / (2 * 93 + 2 + 1), 1e-12);  // 2TP/(2TP+FN+FP)
 	detectionScores(0, 3, 2, r, p, f);
 	EXPECT_EQ(f, 0.0);
 	detectionScores(0, 0, 2, r, p, f);
@@ -123,8 +123,8 @@ TEST(EvaluateTrees, EveryStatusWithRange)
 	EXPECT_EQ(ev.tp, 2u);
 	EXPECT_EQ(ev.fn, 1u);
 	EXPECT_EQ(ev.fp, 1u);
-	EXPECT_EQ(ev.est_matched_excluded, 2u);	 // e2 (small tree), e4 (far tree)
-	EXPECT_EQ(ev.est_out_of_range, 1u);		 // e5
+	EXPECT_EQ(ev.est_matched_excluded, 2u);  // e2 (small tree), e4 (far tree)
+	EXPECT_EQ(ev.est_out_of_range, 1u);      // e5
 	EXPECT_EQ(ev.est_status[3], EstTreeStatus::FalsePositive);
 	EXPECT_EQ(ev.est_status[5], EstTreeStatus::OutOfRange);
 	EXPECT_NEAR(ev.recall, 2.0 / 3, 1e-12);
@@ -146,7 +146,8 @@ TEST(EvaluateTrees, EveryStatusWithRange)
 	EXPECT_NEAR(w.measured_dbh_m.min, 0.30, 1e-12);
 	EXPECT_NEAR(w.measured_dbh_m.max, 0.40, 1e-12);
 	EXPECT_EQ(w.estimated_count, 3u);  // e0, e1 and the false positive e3
-	EXPECT_NEAR(w.estimated_dbh_m.mean, 0.88 / 3, 1e-12);  // (.32 + .36 + .20) / 3
+	EXPECT_NEAR(w.estimated_dbh_m.mean, 0.88 / 3,
+	            1e-12);  // (.32 + .36 + .20) / 3
 	EXPECT_NEAR(w.estimated_dbh_m.min, 0.20, 1e-12);
 	EXPECT_NEAR(w.estimated_dbh_m.max, 0.36, 1e-12);
 	EXPECT_EQ(w.tp, 2u);
@@ -168,15 +169,15 @@ TEST(EvaluateTrees, WithoutRangeAndThresholds)
 	const auto gt = scenarioGt();
 	const auto est = scenarioEst();
 	TreeEvalOptions o;
-	const auto ev = evaluateTrees(gt, est, o);	// no trajectory: no range rule
-	EXPECT_EQ(ev.gt_evaluated, 4u);			   // g5 now counts
-	EXPECT_EQ(ev.tp, 3u);					   // e4 matches g5
-	EXPECT_EQ(ev.fp, 2u);					   // e3 and e5
+	const auto ev = evaluateTrees(gt, est, o);  // no trajectory: no range rule
+	EXPECT_EQ(ev.gt_evaluated, 4u);             // g5 now counts
+	EXPECT_EQ(ev.tp, 3u);                       // e4 matches g5
+	EXPECT_EQ(ev.fp, 2u);                       // e3 and e5
 	ASSERT_EQ(ev.regions.size(), 1u);
 	EXPECT_EQ(ev.regions[0].region.name, "all");
 	EXPECT_EQ(ev.regions[0].measured_count, 4u);
 
-	o.min_dbh_m = 0.05;	 // g3 (8 cm) now evaluated, e2 is its true positive
+	o.min_dbh_m = 0.05;  // g3 (8 cm) now evaluated, e2 is its true positive
 	EXPECT_EQ(evaluateTrees(gt, est, o).tp, 4u);
 	o.max_match_m = 0.05;  // only exact-ish positions match: none here
 	EXPECT_EQ(evaluateTrees(gt, est, o).tp, 0u);
@@ -194,7 +195,7 @@ TEST(TrajectoryCorridor, MatchesBruteForce)
 		s.t_s = i;
 		// Every 50th step is a 60 m jump: long segments must be found too.
 		p += i % 50 == 49 ? Eigen::Vector3d(60, 20, 0)
-						  : Eigen::Vector3d(step(rng), step(rng), 0);
+		                  : Eigen::Vector3d(step(rng), step(rng), 0);
 		s.pose.translation() = p;
 		t.push_back(s);
 	}
@@ -208,7 +209,8 @@ TEST(TrajectoryCorridor, MatchesBruteForce)
 		{
 			const Eigen::Vector2d a = t[i - 1].pose.translation().head<2>();
 			const Eigen::Vector2d b = t[i].pose.translation().head<2>();
-			const double u = std::clamp((x - a).dot(b - a) / (b - a).squaredNorm(), 0.0, 1.0);
+			const double u = std::clamp(
+			    (x - a).dot(b - a) / (b - a).squaredNorm(), 0.0, 1.0);
 			best = std::min(best, (a + u * (b - a) - x).norm());
 		}
 		ASSERT_NEAR(c.distance(x.x(), x.y()), best, 1e-9);
@@ -220,10 +222,11 @@ TEST(TrajectoryCorridor, MatchesBruteForce)
 
 TEST(TreeFiles, ReadAndErrors)
 {
-	const auto gt = writeTemp("gt.csv",
-							  "id,x,y,z_ground,dbh_m,height_m,lean_deg,sapling\n"
-							  "1,1.5,2.5,0.1,0.31,22,1.5,0\n"
-							  "2,3,4,0.2,0.04,3,0,1\n");
+	const auto gt =
+	    writeTemp("gt.csv",
+	              "id,x,y,z_ground,dbh_m,height_m,lean_deg,sapling\n"
+	              "1,1.5,2.5,0.1,0.31,22,1.5,0\n"
+	              "2,3,4,0.2,0.04,3,0,1\n");
 	const auto g = readTreesCsv(gt);
 	ASSERT_EQ(g.size(), 2u);
 	EXPECT_EQ(g[0].id, "1");
@@ -232,27 +235,36 @@ TEST(TreeFiles, ReadAndErrors)
 	EXPECT_TRUE(g[1].sapling);
 	EXPECT_EQ(g[1].line, 3u);
 
-	const auto est = writeTemp("est.csv", "x,y,id,dbh_m,score\n1,2,a,0.3,0.9\n");
+	const auto est =
+	    writeTemp("est.csv", "x,y,id,dbh_m,score\n1,2,a,0.3,0.9\n");
 	EXPECT_EQ(readTreesCsv(est)[0].id, "a");
 
-	const auto neg = writeTemp("neg.csv", "id,x,y,dbh_m\n1,0,0,0.2\n2,0,0,-0.1\n");
-	EXPECT_NE(errorOf([&] { readTreesCsv(neg); }).find(neg + ":3:4 (dbh_m): expected a DBH >= 0"),
-			  std::string::npos);
+	const auto neg =
+	    writeTemp("neg.csv", "id,x,y,dbh_m\n1,0,0,0.2\n2,0,0,-0.1\n");
+	EXPECT_NE(errorOf([&] { readTreesCsv(neg); })
+	              .find(neg + ":3:4 (dbh_m): expected a DBH >= 0"),
+	          std::string::npos);
 	const auto nodbh = writeTemp("nodbh.csv", "id,x,y,dbh_cm\n");
 	EXPECT_NE(errorOf([&] { readTreesCsv(nodbh); }).find("no column 'dbh_m'"),
-			  std::string::npos);
-	const auto sap = writeTemp("sap.csv", "id,x,y,dbh_m,sapling\n1,0,0,0.2,maybe\n");
+	          std::string::npos);
+	const auto sap =
+	    writeTemp("sap.csv", "id,x,y,dbh_m,sapling\n1,0,0,0.2,maybe\n");
 	EXPECT_NE(errorOf([&] { readTreesCsv(sap); }).find(sap + ":2:5 (sapling)"),
-			  std::string::npos);
+	          std::string::npos);
 
-	const auto reg = writeTemp("reg.csv", "name,xmin,ymin,xmax,ymax\nA,0,0,10,10\nB,10,0,20,10\n");
+	const auto reg = writeTemp(
+	    "reg.csv", "name,xmin,ymin,xmax,ymax\nA,0,0,10,10\nB,10,0,20,10\n");
 	const auto r = readRegionsCsv(reg);
 	ASSERT_EQ(r.size(), 2u);
 	EXPECT_TRUE(r[1].contains(10, 5));
 	EXPECT_FALSE(r[1].contains(9.99, 5));
-	const auto inv = writeTemp("inv.csv", "name,xmin,ymin,xmax,ymax\nA,5,0,1,10\n");
-	EXPECT_NE(errorOf([&] { readRegionsCsv(inv); }).find(inv + ":2:4 (xmax): expected xmax >= xmin"),
-			  std::string::npos);
-	const auto dup = writeTemp("dupreg.csv", "name,xmin,ymin,xmax,ymax\nA,0,0,1,1\nA,0,0,1,1\n");
-	EXPECT_NE(errorOf([&] { readRegionsCsv(dup); }).find("defined twice"), std::string::npos);
+	const auto inv =
+	    writeTemp("inv.csv", "name,xmin,ymin,xmax,ymax\nA,5,0,1,10\n");
+	EXPECT_NE(errorOf([&] { readRegionsCsv(inv); })
+	              .find(inv + ":2:4 (xmax): expected xmax >= xmin"),
+	          std::string::npos);
+	const auto dup = writeTemp(
+	    "dupreg.csv", "name,xmin,ymin,xmax,ymax\nA,0,0,1,1\nA,0,0,1,1\n");
+	EXPECT_NE(errorOf([&] { readRegionsCsv(dup); }).find("defined twice"),
+	          std::string::npos);
 }

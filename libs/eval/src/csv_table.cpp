@@ -24,7 +24,7 @@ std::string trim(const std::string& s)
 std::string lower(std::string s)
 {
 	std::transform(s.begin(), s.end(), s.begin(),
-				   [](unsigned char c) { return std::tolower(c); });
+	               [](unsigned char c) { return std::tolower(c); });
 	return s;
 }
 
@@ -35,9 +35,9 @@ std::vector<std::string> splitFields(const std::string& line)
 	while (true)
 	{
 		const auto comma = line.find(',', start);
-		std::string f = trim(line.substr(
-			start, comma == std::string::npos ? std::string::npos
-											  : comma - start));
+		std::string f = trim(line.substr(start, comma == std::string::npos
+		                                            ? std::string::npos
+		                                            : comma - start));
 		if (f.size() >= 2 && f.front() == '"' && f.back() == '"')
 			f = trim(f.substr(1, f.size() - 2));
 		out.push_back(f);
@@ -72,7 +72,7 @@ CsvTable CsvTable::read(const std::string& path)
 	std::ifstream f(path);
 	if (!f)
 		throw std::runtime_error("cannot open '" + path +
-								 "': " + std::strerror(errno));
+		                         "': " + std::strerror(errno));
 	CsvTable t;
 	t.path_ = path;
 	std::string line;
@@ -89,32 +89,32 @@ CsvTable CsvTable::read(const std::string& path)
 			for (size_t i = 0; i < fields.size(); i++)
 			{
 				if (fields[i].empty())
-					throw std::runtime_error(
-						path + ":" + std::to_string(lineno) + ":" +
-						std::to_string(i + 1) + ": empty column name in header");
+					throw std::runtime_error(path + ":" +
+					                         std::to_string(lineno) + ":" +
+					                         std::to_string(i + 1) +
+					                         ": empty column name in header");
 				for (size_t j = 0; j < i; j++)
 					if (lower(fields[j]) == lower(fields[i]))
 						throw std::runtime_error(
-							path + ":" + std::to_string(lineno) + ":" +
-							std::to_string(i + 1) + ": column '" + fields[i] +
-							"' appears twice in the header");
+						    path + ":" + std::to_string(lineno) + ":" +
+						    std::to_string(i + 1) + ": column '" + fields[i] +
+						    "' appears twice in the header");
 			}
 			t.header_ = std::move(fields);
 			continue;
 		}
 		if (fields.size() != t.header_.size())
 			throw std::runtime_error(
-				path + ":" + std::to_string(lineno) + ": expected " +
-				std::to_string(t.header_.size()) + " comma-separated fields (" +
-				joined(t.header_) + "), got " + std::to_string(fields.size()));
+			    path + ":" + std::to_string(lineno) + ": expected " +
+			    std::to_string(t.header_.size()) + " comma-separated fields (" +
+			    joined(t.header_) + "), got " + std::to_string(fields.size()));
 		t.cells_.push_back(std::move(fields));
 		t.lines_.push_back(lineno);
 	}
-	if (f.bad())
-		throw std::runtime_error("error reading '" + path + "'");
+	if (f.bad()) throw std::runtime_error("error reading '" + path + "'");
 	if (t.header_.empty())
 		throw std::runtime_error(path +
-								 ": empty file, expected a CSV header line");
+		                         ": empty file, expected a CSV header line");
 	return t;
 }
 
@@ -129,22 +129,22 @@ size_t CsvTable::column(const std::string& name) const
 {
 	if (auto c = findColumn(name)) return *c;
 	throw std::runtime_error(path_ + ":" + std::to_string(header_line_) +
-							 ": header has no column '" + name +
-							 "' (found: " + joined(header_) + ")");
+	                         ": header has no column '" + name +
+	                         "' (found: " + joined(header_) + ")");
 }
 
 std::string CsvTable::where(size_t row, size_t col) const
 {
 	return path_ + ":" + std::to_string(lines_[row]) + ":" +
-		   std::to_string(col + 1) + " (" + header_[col] + ")";
+	       std::to_string(col + 1) + " (" + header_[col] + ")";
 }
 
 double CsvTable::number(size_t row, size_t col) const
 {
 	if (auto v = parseFiniteNumber(cells_[row][col])) return *v;
 	throw std::runtime_error(where(row, col) +
-							 ": expected a finite number, got '" +
-							 cells_[row][col] + "'");
+	                         ": expected a finite number, got '" +
+	                         cells_[row][col] + "'");
 }
 
 bool CsvTable::boolean(size_t row, size_t col) const
@@ -153,8 +153,8 @@ bool CsvTable::boolean(size_t row, size_t col) const
 	if (v == "1" || v == "true" || v == "yes") return true;
 	if (v == "0" || v == "false" || v == "no") return false;
 	throw std::runtime_error(where(row, col) +
-							 ": expected 0/1/true/false, got '" +
-							 cells_[row][col] + "'");
+	                         ": expected 0/1/true/false, got '" +
+	                         cells_[row][col] + "'");
 }
 
 }  // namespace forest_slam::eval

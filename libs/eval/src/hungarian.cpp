@@ -17,10 +17,12 @@ std::vector<int> hungarian(const Eigen::MatrixXd& cost)
 	std::vector<int> result(rows, -1);
 	if (rows == 0 || cols == 0) return result;
 	if (!cost.allFinite())
-		throw std::invalid_argument("hungarian: cost matrix has non-finite entries");
+		throw std::invalid_argument(
+		    "hungarian: cost matrix has non-finite entries");
 	// The potentials formulation needs n <= m; solve the transpose otherwise.
 	const bool transposed = rows > cols;
-	const Eigen::MatrixXd a = transposed ? Eigen::MatrixXd(cost.transpose()) : cost;
+	const Eigen::MatrixXd a =
+	    transposed ? Eigen::MatrixXd(cost.transpose()) : cost;
 	const int n = static_cast<int>(a.rows()), m = static_cast<int>(a.cols());
 	const double inf = std::numeric_limits<double>::infinity();
 	// 1-based arrays; column 0 is a virtual column holding the row being added.
@@ -88,7 +90,10 @@ namespace
 struct UnionFind
 {
 	std::vector<size_t> parent;
-	explicit UnionFind(size_t n) : parent(n) { std::iota(parent.begin(), parent.end(), 0); }
+	explicit UnionFind(size_t n) : parent(n)
+	{
+		std::iota(parent.begin(), parent.end(), 0);
+	}
 	size_t find(size_t x)
 	{
 		while (parent[x] != x) x = parent[x] = parent[parent[x]];
@@ -102,24 +107,27 @@ struct CellHash
 	size_t operator()(const std::pair<int64_t, int64_t>& c) const
 	{
 		return std::hash<int64_t>()(c.first * 73856093LL) ^
-			   std::hash<int64_t>()(c.second * 19349663LL);
+		       std::hash<int64_t>()(c.second * 19349663LL);
 	}
 };
 }  // namespace
 
 std::vector<GatedMatch> matchGated(const std::vector<Eigen::Vector2d>& a,
-								   const std::vector<Eigen::Vector2d>& b,
-								   double gate_m)
+                                   const std::vector<Eigen::Vector2d>& b,
+                                   double gate_m)
 {
 	if (!(gate_m > 0) || !std::isfinite(gate_m))
 		throw std::invalid_argument("matchGated: gate must be positive");
 	// Candidate pairs through a grid of gate-sized cells: a partner within the
 	// gate lies in the same or an adjacent cell.
-	auto cellOf = [&](const Eigen::Vector2d& p) {
+	auto cellOf = [&](const Eigen::Vector2d& p)
+	{
 		return std::make_pair(static_cast<int64_t>(std::floor(p.x() / gate_m)),
-							  static_cast<int64_t>(std::floor(p.y() / gate_m)));
+		                      static_cast<int64_t>(std::floor(p.y() / gate_m)));
 	};
-	std::unordered_map<std::pair<int64_t, int64_t>, std::vector<size_t>, CellHash> grid;
+	std::unordered_map<std::pair<int64_t, int64_t>, std::vector<size_t>,
+	                   CellHash>
+	    grid;
 	for (size_t j = 0; j < b.size(); j++) grid[cellOf(b[j])].push_back(j);
 
 	struct Edge
@@ -165,20 +173,21 @@ std::vector<GatedMatch> matchGated(const std::vector<Eigen::Vector2d>& a,
 		ai.erase(std::unique(ai.begin(), ai.end()), ai.end());
 		std::sort(bj.begin(), bj.end());
 		bj.erase(std::unique(bj.begin(), bj.end()), bj.end());
-		auto idx = [](const std::vector<size_t>& v, size_t x) {
+		auto idx = [](const std::vector<size_t>& v, size_t x)
+		{
 			return static_cast<size_t>(std::lower_bound(v.begin(), v.end(), x) -
-									   v.begin());
+			                           v.begin());
 		};
 		// A forbidden pair costs more than any set of allowed pairs can save,
 		// so the optimum first maximises the number of allowed pairs.
 		const size_t q = std::min(ai.size(), bj.size());
 		const double forbidden = gate_m * static_cast<double>(q + 1) + 1.0;
 		Eigen::MatrixXd cost = Eigen::MatrixXd::Constant(
-			static_cast<Eigen::Index>(ai.size()),
-			static_cast<Eigen::Index>(bj.size()), forbidden);
+		    static_cast<Eigen::Index>(ai.size()),
+		    static_cast<Eigen::Index>(bj.size()), forbidden);
 		for (size_t e : eids)
 			cost(static_cast<Eigen::Index>(idx(ai, edges[e].i)),
-				 static_cast<Eigen::Index>(idx(bj, edges[e].j))) = edges[e].d;
+			     static_cast<Eigen::Index>(idx(bj, edges[e].j))) = edges[e].d;
 		const auto assign = hungarian(cost);
 		for (size_t r = 0; r < assign.size(); r++)
 		{
@@ -189,7 +198,8 @@ std::vector<GatedMatch> matchGated(const std::vector<Eigen::Vector2d>& a,
 		}
 	}
 	std::sort(out.begin(), out.end(),
-			  [](const GatedMatch& x, const GatedMatch& y) { return x.a < y.a; });
+	          [](const GatedMatch& x, const GatedMatch& y)
+	          { return x.a < y.a; });
 	return out;
 }
 

@@ -22,7 +22,8 @@ void JsonWriter::beforeValue()
 	if (!stack_.empty())
 	{
 		if (stack_.back().is_object)
-			throw std::logic_error("JsonWriter: value in an object needs a key");
+			throw std::logic_error(
+			    "JsonWriter: value in an object needs a key");
 		if (!stack_.back().empty) os_ << ',';
 		stack_.back().empty = false;
 		newline();
@@ -129,11 +130,21 @@ std::string JsonWriter::escape(const std::string& s)
 	{
 		switch (c)
 		{
-			case '"': out += "\\\""; break;
-			case '\\': out += "\\\\"; break;
-			case '\n': out += "\\n"; break;
-			case '\r': out += "\\r"; break;
-			case '\t': out += "\\t"; break;
+			case '"':
+				out += "\\\"";
+				break;
+			case '\\':
+				out += "\\\\";
+				break;
+			case '\n':
+				out += "\\n";
+				break;
+			case '\r':
+				out += "\\r";
+				break;
+			case '\t':
+				out += "\\t";
+				break;
 			default:
 				if (c < 0x20)
 				{

@@ -16,7 +16,7 @@ bool looksLikeCsv(const std::string& path)
 	std::ifstream f(path);
 	if (!f)
 		throw std::runtime_error("cannot open '" + path +
-								 "': " + std::strerror(errno));
+		                         "': " + std::strerror(errno));
 	std::string line;
 	while (std::getline(f, line))
 	{
@@ -39,14 +39,15 @@ PositionTrack readPositionTrack(const std::string& path)
 	}
 	const CsvTable csv = CsvTable::read(path);
 	const size_t ct = csv.column("t"), cx = csv.column("x"),
-				 cy = csv.column("y"), cz = csv.column("z");
+	             cy = csv.column("y"), cz = csv.column("z");
 	for (size_t r = 0; r < csv.rows(); r++)
 	{
 		PositionFix fix;
 		fix.t_s = csv.number(r, ct);
 		fix.p = {csv.number(r, cx), csv.number(r, cy), csv.number(r, cz)};
 		if (!track.empty() && fix.t_s < track.back().t_s)
-			throw std::runtime_error(csv.where(r, ct) + ": time goes backwards");
+			throw std::runtime_error(csv.where(r, ct) +
+			                         ": time goes backwards");
 		track.push_back(fix);
 	}
 	return track;

@@ -28,7 +28,8 @@ SummaryStats summarize(const std::vector<double>& values)
 	std::vector<double> sorted = values;
 	std::sort(sorted.begin(), sorted.end());
 	const size_t h = sorted.size() / 2;
-	s.median = sorted.size() % 2 ? sorted[h] : 0.5 * (sorted[h - 1] + sorted[h]);
+	s.median =
+	    sorted.size() % 2 ? sorted[h] : 0.5 * (sorted[h - 1] + sorted[h]);
 	return s;
 }
 

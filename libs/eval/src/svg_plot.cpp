@@ -18,7 +18,7 @@ std::string num(double v)
 std::string styleAttrs(const SvgStyle& s)
 {
 	std::string a = " stroke=\"" + s.stroke + "\" stroke-width=\"" +
-					num(s.width_px) + "\" fill=\"" + s.fill + "\"";
+	                num(s.width_px) + "\" fill=\"" + s.fill + "\"";
 	if (!s.dash.empty()) a += " stroke-dasharray=\"" + s.dash + "\"";
 	if (s.opacity < 1) a += " opacity=\"" + std::to_string(s.opacity) + "\"";
 	return a;
@@ -37,8 +37,10 @@ double niceStep(double range, int target)
 std::string tickLabel(double v, double step)
 {
 	char buf[32];
-	const int decimals = step >= 1 ? 0 : static_cast<int>(std::ceil(-std::log10(step)));
-	std::snprintf(buf, sizeof(buf), "%.*f", decimals, std::abs(v) < 1e-12 ? 0.0 : v);
+	const int decimals =
+	    step >= 1 ? 0 : static_cast<int>(std::ceil(-std::log10(step)));
+	std::snprintf(buf, sizeof(buf), "%.*f", decimals,
+	              std::abs(v) < 1e-12 ? 0.0 : v);
 	return buf;
 }
 }  // namespace
@@ -48,17 +50,23 @@ std::string svgEscape(const std::string& s)
 	std::string out;
 	for (char c : s)
 	{
-		if (c == '<') out += "&lt;";
-		else if (c == '>') out += "&gt;";
-		else if (c == '&') out += "&amp;";
-		else if (c == '"') out += "&quot;";
-		else out += c;
+		if (c == '<')
+			out += "&lt;";
+		else if (c == '>')
+			out += "&gt;";
+		else if (c == '&')
+			out += "&amp;";
+		else if (c == '"')
+			out += "&quot;";
+		else
+			out += c;
 	}
 	return out;
 }
 
-SvgPanel::SvgPanel(double left_px, double top_px, double width_px, double height_px)
-	: left_(left_px), top_(top_px), width_(width_px), height_(height_px)
+SvgPanel::SvgPanel(double left_px, double top_px, double width_px,
+                   double height_px)
+    : left_(left_px), top_(top_px), width_(width_px), height_(height_px)
 {
 	// Room for the title above and tick labels / axis names left and below.
 	plot_l_ = left_ + 70;
@@ -68,7 +76,7 @@ SvgPanel::SvgPanel(double left_px, double top_px, double width_px, double height
 }
 
 void SvgPanel::extend(double x, double y, double& xmin, double& xmax,
-					  double& ymin, double& ymax)
+                      double& ymin, double& ymax)
 {
 	if (!std::isfinite(x) || !std::isfinite(y)) return;
 	xmin = std::min(xmin, x);
@@ -78,7 +86,7 @@ void SvgPanel::extend(double x, double y, double& xmin, double& xmax,
 }
 
 void SvgPanel::setRange(double xmin, double xmax, double ymin, double ymax,
-						bool equal_aspect)
+                        bool equal_aspect)
 {
 	if (!(xmin <= xmax)) xmin = 0, xmax = 1;
 	if (!(ymin <= ymax)) ymin = 0, ymax = 1;
@@ -105,7 +113,8 @@ double SvgPanel::py(double y) const
 	return plot_t_ + (ymax_ - y) / (ymax_ - ymin_) * plot_h_;
 }
 
-void SvgPanel::polyline(const std::vector<Eigen::Vector2d>& pts, const SvgStyle& s)
+void SvgPanel::polyline(const std::vector<Eigen::Vector2d>& pts,
+                        const SvgStyle& s)
 {
 	if (pts.empty()) return;
 	// Points closer than half a pixel to the last drawn one add bytes, not
@@ -120,94 +129,97 @@ void SvgPanel::polyline(const std::vector<Eigen::Vector2d>& pts, const SvgStyle&
 		lx = x, ly = y;
 	}
 	body_ += "<polyline points=\"" + p + "\"" + styleAttrs(s) +
-			 " stroke-linejoin=\"round\"/>\n";
+	         " stroke-linejoin=\"round\"/>\n";
 }
 
-void SvgPanel::line(double x0, double y0, double x1, double y1, const SvgStyle& s)
+void SvgPanel::line(double x0, double y0, double x1, double y1,
+                    const SvgStyle& s)
 {
 	body_ += "<line x1=\"" + num(px(x0)) + "\" y1=\"" + num(py(y0)) +
-			 "\" x2=\"" + num(px(x1)) + "\" y2=\"" + num(py(y1)) + "\"" +
-			 styleAttrs(s) + "/>\n";
+	         "\" x2=\"" + num(px(x1)) + "\" y2=\"" + num(py(y1)) + "\"" +
+	         styleAttrs(s) + "/>\n";
 }
 
 void SvgPanel::circle(double x, double y, double r, const SvgStyle& s)
 {
 	body_ += "<circle cx=\"" + num(px(x)) + "\" cy=\"" + num(py(y)) +
-			 "\" r=\"" + num(r) + "\"" + styleAttrs(s) + "/>\n";
+	         "\" r=\"" + num(r) + "\"" + styleAttrs(s) + "/>\n";
 }
 
 void SvgPanel::cross(double x, double y, double h, const SvgStyle& s)
 {
 	const double cx = px(x), cy = py(y);
 	body_ += "<path d=\"M" + num(cx - h) + "," + num(cy - h) + " L" +
-			 num(cx + h) + "," + num(cy + h) + " M" + num(cx - h) + "," +
-			 num(cy + h) + " L" + num(cx + h) + "," + num(cy - h) + "\"" +
-			 styleAttrs(s) + "/>\n";
+	         num(cx + h) + "," + num(cy + h) + " M" + num(cx - h) + "," +
+	         num(cy + h) + " L" + num(cx + h) + "," + num(cy - h) + "\"" +
+	         styleAttrs(s) + "/>\n";
 }
 
 void SvgPanel::axes(const std::string& title, const std::string& xlabel,
-					const std::string& ylabel)
+                    const std::string& ylabel)
 {
 	std::string a;
-	a += "<rect x=\"" + num(plot_l_) + "\" y=\"" + num(plot_t_) + "\" width=\"" +
-		 num(plot_w_) + "\" height=\"" + num(plot_h_) +
-		 "\" fill=\"none\" stroke=\"#444\"/>\n";
-	const double xs = niceStep(xmax_ - xmin_, 6), ys = niceStep(ymax_ - ymin_, 6);
+	a += "<rect x=\"" + num(plot_l_) + "\" y=\"" + num(plot_t_) +
+	     "\" width=\"" + num(plot_w_) + "\" height=\"" + num(plot_h_) +
+	     "\" fill=\"none\" stroke=\"#444\"/>\n";
+	const double xs = niceStep(xmax_ - xmin_, 6),
+	             ys = niceStep(ymax_ - ymin_, 6);
 	for (double v = std::ceil(xmin_ / xs) * xs; v <= xmax_; v += xs)
 	{
 		const double x = px(v);
 		a += "<line x1=\"" + num(x) + "\" y1=\"" + num(plot_t_) + "\" x2=\"" +
-			 num(x) + "\" y2=\"" + num(plot_t_ + plot_h_) +
-			 "\" stroke=\"#e4e4e4\"/>\n";
+		     num(x) + "\" y2=\"" + num(plot_t_ + plot_h_) +
+		     "\" stroke=\"#e4e4e4\"/>\n";
 		a += "<text x=\"" + num(x) + "\" y=\"" + num(plot_t_ + plot_h_ + 16) +
-			 "\" text-anchor=\"middle\">" + tickLabel(v, xs) + "</text>\n";
+		     "\" text-anchor=\"middle\">" + tickLabel(v, xs) + "</text>\n";
 	}
 	for (double v = std::ceil(ymin_ / ys) * ys; v <= ymax_; v += ys)
 	{
 		const double y = py(v);
 		a += "<line x1=\"" + num(plot_l_) + "\" y1=\"" + num(y) + "\" x2=\"" +
-			 num(plot_l_ + plot_w_) + "\" y2=\"" + num(y) +
-			 "\" stroke=\"#e4e4e4\"/>\n";
+		     num(plot_l_ + plot_w_) + "\" y2=\"" + num(y) +
+		     "\" stroke=\"#e4e4e4\"/>\n";
 		a += "<text x=\"" + num(plot_l_ - 6) + "\" y=\"" + num(y + 4) +
-			 "\" text-anchor=\"end\">" + tickLabel(v, ys) + "</text>\n";
+		     "\" text-anchor=\"end\">" + tickLabel(v, ys) + "</text>\n";
 	}
 	a += "<text x=\"" + num(plot_l_ + plot_w_ / 2) + "\" y=\"" +
-		 num(plot_t_ + plot_h_ + 38) + "\" text-anchor=\"middle\">" +
-		 svgEscape(xlabel) + "</text>\n";
+	     num(plot_t_ + plot_h_ + 38) + "\" text-anchor=\"middle\">" +
+	     svgEscape(xlabel) + "</text>\n";
 	const double ylx = left_ + 16, yly = plot_t_ + plot_h_ / 2;
 	a += "<text x=\"" + num(ylx) + "\" y=\"" + num(yly) +
-		 "\" text-anchor=\"middle\" transform=\"rotate(-90 " + num(ylx) + " " +
-		 num(yly) + ")\">" + svgEscape(ylabel) + "</text>\n";
+	     "\" text-anchor=\"middle\" transform=\"rotate(-90 " + num(ylx) + " " +
+	     num(yly) + ")\">" + svgEscape(ylabel) + "</text>\n";
 	a += "<text x=\"" + num(plot_l_ + plot_w_ / 2) + "\" y=\"" +
-		 num(top_ + 22) + "\" text-anchor=\"middle\" font-weight=\"bold\">" +
-		 svgEscape(title) + "</text>\n";
+	     num(top_ + 22) + "\" text-anchor=\"middle\" font-weight=\"bold\">" +
+	     svgEscape(title) + "</text>\n";
 	// Grid first so the data is drawn over it.
 	body_ = a + body_;
 }
 
-void SvgPanel::legend(const std::vector<std::pair<std::string, SvgStyle>>& entries)
+void SvgPanel::legend(
+    const std::vector<std::pair<std::string, SvgStyle>>& entries)
 {
 	double y = plot_t_ + 14;
 	const double x = plot_l_ + 10;
 	body_ += "<rect x=\"" + num(x - 4) + "\" y=\"" + num(plot_t_ + 3) +
-			 "\" width=\"190\" height=\"" + num(18.0 * entries.size() + 4) +
-			 "\" fill=\"white\" opacity=\"0.85\"/>\n";
+	         "\" width=\"190\" height=\"" + num(18.0 * entries.size() + 4) +
+	         "\" fill=\"white\" opacity=\"0.85\"/>\n";
 	for (const auto& [label, s] : entries)
 	{
 		SvgStyle ls = s;
 		if (ls.width_px < 2) ls.width_px = 2;
 		body_ += "<line x1=\"" + num(x) + "\" y1=\"" + num(y - 4) + "\" x2=\"" +
-				 num(x + 24) + "\" y2=\"" + num(y - 4) + "\"" + styleAttrs(ls) +
-				 "/>\n";
+		         num(x + 24) + "\" y2=\"" + num(y - 4) + "\"" + styleAttrs(ls) +
+		         "/>\n";
 		body_ += "<text x=\"" + num(x + 30) + "\" y=\"" + num(y) + "\">" +
-				 svgEscape(label) + "</text>\n";
+		         svgEscape(label) + "</text>\n";
 		y += 18;
 	}
 }
 
 void writeSvgDocument(std::ostream& os, double width_px, double height_px,
-					  const std::vector<const SvgPanel*>& panels,
-					  const std::string& title)
+                      const std::vector<const SvgPanel*>& panels,
+                      const std::string& title)
 {
 	os << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
 	   << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << num(width_px)

@@ -33,76 +33,78 @@ std::string cell(double v, int width, int decimals)
 void writeStats(JsonWriter& j, const SummaryStats& s)
 {
 	j.beginObject()
-		.kv("count", s.count)
-		.kv("mean", s.mean)
-		.kv("std", s.std)
-		.kv("min", s.min)
-		.kv("max", s.max)
-		.kv("median", s.median)
-		.kv("rmse", s.rmse)
-		.endObject();
+	    .kv("count", s.count)
+	    .kv("mean", s.mean)
+	    .kv("std", s.std)
+	    .kv("min", s.min)
+	    .kv("max", s.max)
+	    .kv("median", s.median)
+	    .kv("rmse", s.rmse)
+	    .endObject();
 }
 
 void writePose(JsonWriter& j, const Eigen::Isometry3d& T)
 {
 	const Eigen::Vector3d rpy = rollPitchYawDeg(T.linear());
 	j.beginObject()
-		.kv("x_m", T.translation().x())
-		.kv("y_m", T.translation().y())
-		.kv("z_m", T.translation().z())
-		.kv("roll_deg", rpy.x())
-		.kv("pitch_deg", rpy.y())
-		.kv("yaw_deg", rpy.z())
-		.endObject();
+	    .kv("x_m", T.translation().x())
+	    .kv("y_m", T.translation().y())
+	    .kv("z_m", T.translation().z())
+	    .kv("roll_deg", rpy.x())
+	    .kv("pitch_deg", rpy.y())
+	    .kv("yaw_deg", rpy.z())
+	    .endObject();
 }
 
 void writeClosure(JsonWriter& j, const ReturnToStartError& c)
 {
 	j.beginObject()
-		.kv("t_first_s", c.t_first_s)
-		.kv("t_last_s", c.t_last_s)
-		.kv("roll_deg", c.roll_deg)
-		.kv("pitch_deg", c.pitch_deg)
-		.kv("yaw_deg", c.yaw_deg)
-		.kv("total_rot_deg", c.total_rot_deg)
-		.kv("angle_deg", c.angle_deg)
-		.kv("x_m", c.x_m)
-		.kv("y_m", c.y_m)
-		.kv("z_m", c.z_m)
-		.kv("total_trans_m", c.total_trans_m)
-		.endObject();
+	    .kv("t_first_s", c.t_first_s)
+	    .kv("t_last_s", c.t_last_s)
+	    .kv("roll_deg", c.roll_deg)
+	    .kv("pitch_deg", c.pitch_deg)
+	    .kv("yaw_deg", c.yaw_deg)
+	    .kv("total_rot_deg", c.total_rot_deg)
+	    .kv("angle_deg", c.angle_deg)
+	    .kv("x_m", c.x_m)
+	    .kv("y_m", c.y_m)
+	    .kv("z_m", c.z_m)
+	    .kv("total_trans_m", c.total_trans_m)
+	    .endObject();
 }
 
 std::string closureRow(const std::string& label, const ReturnToStartError& c)
 {
 	return fmt("  %-14s", label.c_str()) + cell(c.roll_deg, 8, 2) +
-		   cell(c.pitch_deg, 8, 2) + cell(c.yaw_deg, 8, 2) +
-		   cell(c.total_rot_deg, 11, 2) + cell(c.angle_deg, 8, 2) +
-		   cell(c.x_m, 9, 3) + cell(c.y_m, 9, 3) + cell(c.z_m, 9, 3) +
-		   cell(c.total_trans_m, 12, 3) + "\n";
+	       cell(c.pitch_deg, 8, 2) + cell(c.yaw_deg, 8, 2) +
+	       cell(c.total_rot_deg, 11, 2) + cell(c.angle_deg, 8, 2) +
+	       cell(c.x_m, 9, 3) + cell(c.y_m, 9, 3) + cell(c.z_m, 9, 3) +
+	       cell(c.total_trans_m, 12, 3) + "\n";
 }
 
 std::string statsRow(const std::string& label, const SummaryStats& s,
-					 int decimals)
+                     int decimals)
 {
-	return fmt("  %-18s%6zu", label.c_str(), s.count) + cell(s.mean, 10, decimals) +
-		   cell(s.std, 10, decimals) + cell(s.min, 10, decimals) +
-		   cell(s.max, 10, decimals) + cell(s.rmse, 10, decimals) + "\n";
+	return fmt("  %-18s%6zu", label.c_str(), s.count) +
+	       cell(s.mean, 10, decimals) + cell(s.std, 10, decimals) +
+	       cell(s.min, 10, decimals) + cell(s.max, 10, decimals) +
+	       cell(s.rmse, 10, decimals) + "\n";
 }
 
 std::string span(const core::Trajectory& t)
 {
 	if (t.empty()) return "empty";
 	return fmt("%zu poses, %.3f .. %.3f s", t.size(), t.front().t_s,
-			   t.back().t_s);
+	           t.back().t_s);
 }
 }  // namespace
 
-TrajReport evaluateTrajectory(const TrajEvalInputs& in, const TrajEvalOptions& opts)
+TrajReport evaluateTrajectory(const TrajEvalInputs& in,
+                              const TrajEvalOptions& opts)
 {
 	if (in.est.empty())
 		throw std::runtime_error("estimated trajectory '" + in.est_path +
-								 "' has no poses");
+		                         "' has no poses");
 	TrajReport r;
 	r.options = opts;
 	r.est_poses = in.est.size();
@@ -112,9 +114,10 @@ TrajReport evaluateTrajectory(const TrajEvalInputs& in, const TrajEvalOptions& o
 	{
 		if (in.gt.empty())
 			throw std::runtime_error("ground-truth trajectory '" + in.gt_path +
-									 "' has no poses");
+			                         "' has no poses");
 		r.has_gt = true;
-		r.association = associateByInterpolation(in.gt, in.est, opts.association);
+		r.association =
+		    associateByInterpolation(in.gt, in.est, opts.association);
 		const auto& pairs = r.association.pairs;
 		r.gt_path_length_m = gtDistanceTravelled(pairs).back();
 		r.ate_unaligned = absoluteTrajectoryError(pairs, false);
@@ -125,20 +128,21 @@ TrajReport evaluateTrajectory(const TrajEvalInputs& in, const TrajEvalOptions& o
 		// both ends (otherwise the comparison would mix different spans).
 		Eigen::Isometry3d g0, g1;
 		if (core::interpolatePose(in.gt, in.est.front().t_s, g0) &&
-			core::interpolatePose(in.gt, in.est.back().t_s, g1))
+		    core::interpolatePose(in.gt, in.est.back().t_s, g1))
 		{
-			r.gt_return_to_start = returnToStartError(
-				core::StampedPose{in.est.front().t_s, g0},
-				core::StampedPose{in.est.back().t_s, g1});
+			r.gt_return_to_start =
+			    returnToStartError(core::StampedPose{in.est.front().t_s, g0},
+			                       core::StampedPose{in.est.back().t_s, g1});
 			r.return_to_start_vs_gt =
-				returnToStartErrorVsGt(in.est.front(), in.est.back(), g0, g1);
+			    returnToStartErrorVsGt(in.est.front(), in.est.back(), g0, g1);
 		}
 	}
 	if (in.gnss) r.gnss = gnssDrift(in.est, *in.gnss, opts.gnss);
 	return r;
 }
 
-void printTrajReport(std::ostream& os, const TrajEvalInputs& in, const TrajReport& r)
+void printTrajReport(std::ostream& os, const TrajEvalInputs& in,
+                     const TrajReport& r)
 {
 	os << "forest-eval traj\n";
 	os << "  estimate      " << in.est_path << " (" << span(in.est) << ")\n";
@@ -150,13 +154,15 @@ void printTrajReport(std::ostream& os, const TrajEvalInputs& in, const TrajRepor
 	if (r.has_gt)
 	{
 		const auto& a = r.association;
-		os << fmt("  associated    %zu estimate poses (%zu outside the GT time "
-				  "span, %zu in GT gaps > %.2f s); GT path %.2f m\n",
-				  a.pairs.size(), a.est_outside_gt, a.est_in_gt_gap,
-				  r.options.association.max_gt_gap_s, r.gt_path_length_m);
+		os << fmt(
+		    "  associated    %zu estimate poses (%zu outside the GT time "
+		    "span, %zu in GT gaps > %.2f s); GT path %.2f m\n",
+		    a.pairs.size(), a.est_outside_gt, a.est_in_gt_gap,
+		    r.options.association.max_gt_gap_s, r.gt_path_length_m);
 
-		os << "\nATE                         N      mean       std       min       "
-			  "max      RMSE\n";
+		os << "\nATE                         N      mean       std       min   "
+		      "    "
+		      "max      RMSE\n";
 		os << statsRow("unaligned (m)", r.ate_unaligned.trans_m, 4);
 		os << statsRow("SE(3) aligned (m)", r.ate_aligned.trans_m, 4);
 		os << statsRow("unaligned (deg)", r.ate_unaligned.rot_deg, 3);
@@ -166,11 +172,11 @@ void printTrajReport(std::ostream& os, const TrajEvalInputs& in, const TrajRepor
 		os << "  length (m)  segments   trans (%)   rot (deg/m)\n";
 		for (const auto& l : r.rpe.per_length)
 			os << fmt("  %10.1f  %8zu", l.length_m, l.segments) +
-					  cell(l.trans_err_pct, 12, 3) +
-					  cell(l.rot_err_deg_per_m, 14, 5) + "\n";
+			          cell(l.trans_err_pct, 12, 3) +
+			          cell(l.rot_err_deg_per_m, 14, 5) + "\n";
 		os << fmt("  %10s  %8zu", "all", r.rpe.segments) +
-				  cell(r.rpe.trans_err_pct, 12, 3) +
-				  cell(r.rpe.rot_err_deg_per_m, 14, 5) + "\n";
+		          cell(r.rpe.trans_err_pct, 12, 3) +
+		          cell(r.rpe.rot_err_deg_per_m, 14, 5) + "\n";
 
 		os << "\nVertical drift over " << cell(r.vertical.distance_m, 0, 2)
 		   << " m: end |dz| " << cell(r.vertical.end_abs_err_m, 0, 3) << " m ("
@@ -181,30 +187,34 @@ void printTrajReport(std::ostream& os, const TrajEvalInputs& in, const TrajRepor
 
 	os << "\nReturn to start (paper Table 5; last vs first estimated pose)\n";
 	os << "                    roll   pitch     yaw  total rot   angle        x"
-		  "        y        z  total trans\n";
+	      "        y        z  total trans\n";
 	os << "                   (deg)   (deg)   (deg)      (deg)   (deg)      (m)"
-		  "      (m)      (m)          (m)\n";
+	      "      (m)      (m)          (m)\n";
 	os << closureRow("estimate", r.return_to_start);
-	if (r.gt_return_to_start) os << closureRow("ground truth", *r.gt_return_to_start);
+	if (r.gt_return_to_start)
+		os << closureRow("ground truth", *r.gt_return_to_start);
 	if (r.return_to_start_vs_gt)
 		os << closureRow("est. vs GT", *r.return_to_start_vs_gt);
 
 	if (r.gnss)
 	{
 		const auto& g = *r.gnss;
-		os << fmt("\nDrift against GNSS every %.1f s (paper Table 6): %zu samples, "
-				  "%zu skipped (no fix within %.2f s)\n",
-				  r.options.gnss.interval_s, g.samples.size(), g.skipped_no_fix,
-				  r.options.gnss.max_fix_offset_s);
-		os << "                         N      mean       std       min       max"
-			  "      RMSE\n";
+		os << fmt(
+		    "\nDrift against GNSS every %.1f s (paper Table 6): %zu samples, "
+		    "%zu skipped (no fix within %.2f s)\n",
+		    r.options.gnss.interval_s, g.samples.size(), g.skipped_no_fix,
+		    r.options.gnss.max_fix_offset_s);
+		os << "                         N      mean       std       min       "
+		      "max"
+		      "      RMSE\n";
 		os << statsRow("3D (m)", g.dist_3d_m, 3);
 		os << statsRow("horizontal (m)", g.dist_2d_m, 3);
 		os << statsRow("3D SE(3)-aligned", g.aligned_dist_3d_m, 3);
 	}
 }
 
-void writeTrajJson(std::ostream& os, const TrajEvalInputs& in, const TrajReport& r)
+void writeTrajJson(std::ostream& os, const TrajEvalInputs& in,
+                   const TrajReport& r)
 {
 	JsonWriter j(os);
 	j.beginObject();
@@ -235,11 +245,11 @@ void writeTrajJson(std::ostream& os, const TrajEvalInputs& in, const TrajReport&
 		const auto& a = r.association;
 		j.key("association").beginObject();
 		j.kv("pairs", a.pairs.size())
-			.kv("est_outside_gt", a.est_outside_gt)
-			.kv("est_in_gt_gap", a.est_in_gt_gap)
-			.kv("t_first_s", a.pairs.front().t_s)
-			.kv("t_last_s", a.pairs.back().t_s)
-			.kv("gt_path_length_m", r.gt_path_length_m);
+		    .kv("est_outside_gt", a.est_outside_gt)
+		    .kv("est_in_gt_gap", a.est_in_gt_gap)
+		    .kv("t_first_s", a.pairs.front().t_s)
+		    .kv("t_last_s", a.pairs.back().t_s)
+		    .kv("gt_path_length_m", r.gt_path_length_m);
 		j.endObject();
 
 		j.key("ate").beginObject();
@@ -261,25 +271,25 @@ void writeTrajJson(std::ostream& os, const TrajEvalInputs& in, const TrajReport&
 
 		j.key("rpe").beginObject();
 		j.kv("segments", r.rpe.segments)
-			.kv("trans_err_pct", r.rpe.trans_err_pct)
-			.kv("rot_err_deg_per_m", r.rpe.rot_err_deg_per_m);
+		    .kv("trans_err_pct", r.rpe.trans_err_pct)
+		    .kv("rot_err_deg_per_m", r.rpe.rot_err_deg_per_m);
 		j.key("per_length").beginArray();
 		for (const auto& l : r.rpe.per_length)
 			j.beginObject()
-				.kv("length_m", l.length_m)
-				.kv("segments", l.segments)
-				.kv("trans_err_pct", l.trans_err_pct)
-				.kv("rot_err_deg_per_m", l.rot_err_deg_per_m)
-				.endObject();
+			    .kv("length_m", l.length_m)
+			    .kv("segments", l.segments)
+			    .kv("trans_err_pct", l.trans_err_pct)
+			    .kv("rot_err_deg_per_m", l.rot_err_deg_per_m)
+			    .endObject();
 		j.endArray();
 		j.endObject();
 
 		j.key("vertical_drift").beginObject();
 		j.kv("distance_m", r.vertical.distance_m)
-			.kv("end_abs_err_m", r.vertical.end_abs_err_m)
-			.kv("end_pct", r.vertical.end_pct)
-			.kv("max_abs_err_m", r.vertical.max_abs_err_m)
-			.kv("max_pct", r.vertical.max_pct);
+		    .kv("end_abs_err_m", r.vertical.end_abs_err_m)
+		    .kv("end_pct", r.vertical.end_pct)
+		    .kv("max_abs_err_m", r.vertical.max_abs_err_m)
+		    .kv("max_pct", r.vertical.max_pct);
 		j.endObject();
 	}
 	else
@@ -311,9 +321,9 @@ void writeTrajJson(std::ostream& os, const TrajEvalInputs& in, const TrajReport&
 		const auto& g = *r.gnss;
 		j.beginObject();
 		j.kv("t0_s", g.t0_s)
-			.kv("sample_times", g.sample_times)
-			.kv("samples", g.samples.size())
-			.kv("skipped_no_fix", g.skipped_no_fix);
+		    .kv("sample_times", g.sample_times)
+		    .kv("samples", g.samples.size())
+		    .kv("skipped_no_fix", g.skipped_no_fix);
 		j.key("dist_3d_m");
 		writeStats(j, g.dist_3d_m);
 		j.key("dist_2d_m");
@@ -325,10 +335,10 @@ void writeTrajJson(std::ostream& os, const TrajEvalInputs& in, const TrajReport&
 		j.key("points").beginArray();
 		for (const auto& s : g.samples)
 			j.beginObject()
-				.kv("t_s", s.t_s)
-				.kv("dist_3d_m", s.dist_3d_m)
-				.kv("dist_2d_m", s.dist_2d_m)
-				.endObject();
+			    .kv("t_s", s.t_s)
+			    .kv("dist_3d_m", s.dist_3d_m)
+			    .kv("dist_2d_m", s.dist_2d_m)
+			    .endObject();
 		j.endArray();
 		j.endObject();
 	}
@@ -337,7 +347,8 @@ void writeTrajJson(std::ostream& os, const TrajEvalInputs& in, const TrajReport&
 	j.endObject();
 }
 
-void writeTrajSvg(std::ostream& os, const TrajEvalInputs& in, const TrajReport& r)
+void writeTrajSvg(std::ostream& os, const TrajEvalInputs& in,
+                  const TrajReport& r)
 {
 	const double inf = std::numeric_limits<double>::infinity();
 	SvgPanel top(0, 0, 700, 650), prof(700, 0, 600, 650);
@@ -351,16 +362,19 @@ void writeTrajSvg(std::ostream& os, const TrajEvalInputs& in, const TrajReport& 
 	for (const auto& p : in.gt)
 	{
 		gt_xy.push_back(p.pose.translation().head<2>());
-		SvgPanel::extend(gt_xy.back().x(), gt_xy.back().y(), xmin, xmax, ymin, ymax);
+		SvgPanel::extend(gt_xy.back().x(), gt_xy.back().y(), xmin, xmax, ymin,
+		                 ymax);
 	}
 	for (const auto& p : in.est)
 	{
 		est_xy.push_back(p.pose.translation().head<2>());
-		SvgPanel::extend(est_xy.back().x(), est_xy.back().y(), xmin, xmax, ymin, ymax);
+		SvgPanel::extend(est_xy.back().x(), est_xy.back().y(), xmin, xmax, ymin,
+		                 ymax);
 	}
 	if (r.has_gt)
 		for (const auto& p : in.est)
-			al_xy.push_back((r.ate_aligned.alignment * p.pose).translation().head<2>());
+			al_xy.push_back(
+			    (r.ate_aligned.alignment * p.pose).translation().head<2>());
 	if (r.gnss)
 		for (const auto& s : r.gnss->samples)
 		{
@@ -374,7 +388,7 @@ void writeTrajSvg(std::ostream& os, const TrajEvalInputs& in, const TrajReport& 
 	for (const auto& g : gnss_xy) top.circle(g.x(), g.y(), 3, gnss_style);
 	if (!est_xy.empty())
 		top.circle(est_xy.front().x(), est_xy.front().y(), 5,
-				   SvgStyle{"#2ca02c", 2, "none", "", 1});
+		           SvgStyle{"#2ca02c", 2, "none", "", 1});
 	top.axes("Top view", "x (m)", "y (m)");
 	std::vector<std::pair<std::string, SvgStyle>> leg;
 	if (r.has_gt) leg.push_back({"ground truth", gt_style});
@@ -395,8 +409,10 @@ void writeTrajSvg(std::ostream& os, const TrajEvalInputs& in, const TrajReport& 
 		{
 			gt_z.emplace_back(dist[i], pairs[i].gt.translation().z());
 			est_z.emplace_back(dist[i], pairs[i].est.translation().z());
-			SvgPanel::extend(dist[i], gt_z.back().y(), pxmin, pxmax, pymin, pymax);
-			SvgPanel::extend(dist[i], est_z.back().y(), pxmin, pxmax, pymin, pymax);
+			SvgPanel::extend(dist[i], gt_z.back().y(), pxmin, pxmax, pymin,
+			                 pymax);
+			SvgPanel::extend(dist[i], est_z.back().y(), pxmin, pxmax, pymin,
+			                 pymax);
 		}
 		xlabel = "GT distance travelled (m)";
 	}
@@ -404,16 +420,17 @@ void writeTrajSvg(std::ostream& os, const TrajEvalInputs& in, const TrajReport& 
 	{
 		for (const auto& p : in.est)
 		{
-			est_z.emplace_back(p.t_s - in.est.front().t_s, p.pose.translation().z());
+			est_z.emplace_back(p.t_s - in.est.front().t_s,
+			                   p.pose.translation().z());
 			SvgPanel::extend(est_z.back().x(), est_z.back().y(), pxmin, pxmax,
-							 pymin, pymax);
+			                 pymin, pymax);
 		}
 		if (r.gnss)
 			for (const auto& s : r.gnss->samples)
 			{
 				gt_z.emplace_back(s.t_s - in.est.front().t_s, s.gnss.z());
 				SvgPanel::extend(gt_z.back().x(), gt_z.back().y(), pxmin, pxmax,
-								 pymin, pymax);
+				                 pymin, pymax);
 			}
 		xlabel = "time since first estimate (s)";
 	}
@@ -425,7 +442,7 @@ void writeTrajSvg(std::ostream& os, const TrajEvalInputs& in, const TrajReport& 
 	prof.polyline(est_z, est_style);
 	prof.axes("Height profile", xlabel, "z (m)");
 	writeSvgDocument(os, 1300, 650, {&top, &prof},
-					 "forest-eval traj: " + in.est_path);
+	                 "forest-eval traj: " + in.est_path);
 }
 
 }  // namespace forest_slam::eval

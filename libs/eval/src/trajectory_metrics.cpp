@@ -14,7 +14,10 @@ namespace
 {
 constexpr double kRadToDeg = 180.0 / M_PI;
 
-double yawOf(const Eigen::Matrix3d& R) { return std::atan2(R(1, 0), R(0, 0)); }
+double yawOf(const Eigen::Matrix3d& R)
+{
+	return std::atan2(R(1, 0), R(0, 0));
+}
 
 std::string fmtTime(double t)
 {
@@ -27,8 +30,9 @@ std::string fmtTime(double t)
 double rotationAngleDeg(const Eigen::Matrix3d& R)
 {
 	// AngleAxis is accurate near 0 where acos((trace-1)/2) loses digits.
-	return std::abs(Eigen::AngleAxisd(Eigen::Quaterniond(R).normalized()).angle()) *
-		   kRadToDeg;
+	return std::abs(
+	           Eigen::AngleAxisd(Eigen::Quaterniond(R).normalized()).angle()) *
+	       kRadToDeg;
 }
 
 Eigen::Vector3d rollPitchYawDeg(const Eigen::Matrix3d& R)
@@ -40,10 +44,11 @@ Eigen::Vector3d rollPitchYawDeg(const Eigen::Matrix3d& R)
 }
 
 Association associateByInterpolation(const core::Trajectory& gt,
-									 const core::Trajectory& est,
-									 const AssociationOptions& opts)
+                                     const core::Trajectory& est,
+                                     const AssociationOptions& opts)
 {
-	if (gt.empty()) throw std::runtime_error("ground-truth trajectory is empty");
+	if (gt.empty())
+		throw std::runtime_error("ground-truth trajectory is empty");
 	if (est.empty()) throw std::runtime_error("estimated trajectory is empty");
 	Association out;
 	for (const auto& e : est)
@@ -56,10 +61,10 @@ Association associateByInterpolation(const core::Trajectory& gt,
 		}
 		// Bracketing GT samples: reject interpolation across a hole.
 		const auto it = std::lower_bound(
-			gt.begin(), gt.end(), e.t_s,
-			[](const core::StampedPose& p, double v) { return p.t_s < v; });
+		    gt.begin(), gt.end(), e.t_s,
+		    [](const core::StampedPose& p, double v) { return p.t_s < v; });
 		if (it != gt.begin() && it != gt.end() && it->t_s != e.t_s &&
-			it->t_s - (it - 1)->t_s > opts.max_gt_gap_s)
+		    it->t_s - (it - 1)->t_s > opts.max_gt_gap_s)
 		{
 			out.est_in_gt_gap++;
 			continue;
@@ -72,12 +77,12 @@ Association associateByInterpolation(const core::Trajectory& gt,
 	}
 	if (out.pairs.empty())
 		throw std::runtime_error(
-			"no estimated pose lies within the ground-truth time span (GT " +
-			fmtTime(gt.front().t_s) + " .. " + fmtTime(gt.back().t_s) +
-			" s, estimate " + fmtTime(est.front().t_s) + " .. " +
-			fmtTime(est.back().t_s) + " s" +
-			(out.est_in_gt_gap ? ", or all fall in GT gaps" : "") +
-			"): the two files do not overlap in time");
+		    "no estimated pose lies within the ground-truth time span (GT " +
+		    fmtTime(gt.front().t_s) + " .. " + fmtTime(gt.back().t_s) +
+		    " s, estimate " + fmtTime(est.front().t_s) + " .. " +
+		    fmtTime(est.back().t_s) + " s" +
+		    (out.est_in_gt_gap ? ", or all fall in GT gaps" : "") +
+		    "): the two files do not overlap in time");
 	return out;
 }
 
@@ -85,16 +90,18 @@ std::vector<double> gtDistanceTravelled(const PosePairs& pairs)
 {
 	std::vector<double> d(pairs.size(), 0.0);
 	for (size_t i = 1; i < pairs.size(); i++)
-		d[i] = d[i - 1] +
-			   (pairs[i].gt.translation() - pairs[i - 1].gt.translation()).norm();
+		d[i] =
+		    d[i - 1] +
+		    (pairs[i].gt.translation() - pairs[i - 1].gt.translation()).norm();
 	return d;
 }
 
 Eigen::Isometry3d umeyamaSe3(const std::vector<Eigen::Vector3d>& src,
-							 const std::vector<Eigen::Vector3d>& dst)
+                             const std::vector<Eigen::Vector3d>& dst)
 {
 	if (src.size() != dst.size() || src.empty())
-		throw std::invalid_argument("umeyamaSe3: need equal, non-empty point sets");
+		throw std::invalid_argument(
+		    "umeyamaSe3: need equal, non-empty point sets");
 	Eigen::Matrix3Xd s(3, src.size()), d(3, dst.size());
 	for (size_t i = 0; i < src.size(); i++)
 	{
@@ -139,7 +146,8 @@ RpeResult relativePoseError(const PosePairs& pairs, const RpeOptions& opts)
 	double sum_t = 0, sum_r = 0;
 	for (double L : opts.lengths_m)
 	{
-		if (!(L > 0)) throw std::invalid_argument("RPE segment lengths must be > 0");
+		if (!(L > 0))
+			throw std::invalid_argument("RPE segment lengths must be > 0");
 		RpeLengthResult lr;
 		lr.length_m = L;
 		double lt = 0, lrot = 0;
@@ -147,8 +155,9 @@ RpeResult relativePoseError(const PosePairs& pairs, const RpeOptions& opts)
 		{
 			// The micrometre slack keeps a segment whose length is L up to
 			// the rounding of the cumulative sum.
-			const auto it = std::lower_bound(dist.begin() + static_cast<long>(i),
-											 dist.end(), dist[i] + L - 1e-6);
+			const auto it =
+			    std::lower_bound(dist.begin() + static_cast<long>(i),
+			                     dist.end(), dist[i] + L - 1e-6);
 			if (it == dist.end()) break;  // later starts are shorter still
 			const size_t j = static_cast<size_t>(it - dist.begin());
 			const Eigen::Isometry3d dg = pairs[i].gt.inverse() * pairs[j].gt;
@@ -187,8 +196,8 @@ VerticalDrift verticalDrift(const PosePairs& pairs)
 	v.max_abs_err_m = 0;
 	for (const auto& p : pairs)
 	{
-		const double e = (p.est.translation().z() - ze0) -
-						 (p.gt.translation().z() - zg0);
+		const double e =
+		    (p.est.translation().z() - ze0) - (p.gt.translation().z() - zg0);
 		v.max_abs_err_m = std::max(v.max_abs_err_m, std::abs(e));
 		v.end_abs_err_m = std::abs(e);
 	}
@@ -205,8 +214,8 @@ namespace
 /** Fills the components from a relative rotation and a level-frame
  * displacement (see ReturnToStartError). */
 ReturnToStartError closureFrom(const Eigen::Matrix3d& R_rel,
-							   const Eigen::Vector3d& d_level, double t0,
-							   double t1)
+                               const Eigen::Vector3d& d_level, double t0,
+                               double t1)
 {
 	ReturnToStartError r;
 	r.t_first_s = t0;
@@ -225,46 +234,48 @@ ReturnToStartError closureFrom(const Eigen::Matrix3d& R_rel,
 }
 
 Eigen::Vector3d levelDisplacement(const Eigen::Isometry3d& first,
-								  const Eigen::Isometry3d& last)
+                                  const Eigen::Isometry3d& last)
 {
 	const Eigen::Matrix3d Rz =
-		Eigen::AngleAxisd(yawOf(first.linear()), Eigen::Vector3d::UnitZ())
-			.toRotationMatrix();
+	    Eigen::AngleAxisd(yawOf(first.linear()), Eigen::Vector3d::UnitZ())
+	        .toRotationMatrix();
 	return Rz.transpose() * (last.translation() - first.translation());
 }
 }  // namespace
 
 ReturnToStartError returnToStartError(const core::StampedPose& first,
-									  const core::StampedPose& last)
+                                      const core::StampedPose& last)
 {
 	return closureFrom(first.pose.linear().transpose() * last.pose.linear(),
-					   levelDisplacement(first.pose, last.pose), first.t_s,
-					   last.t_s);
+	                   levelDisplacement(first.pose, last.pose), first.t_s,
+	                   last.t_s);
 }
 
 ReturnToStartError returnToStartError(const core::Trajectory& traj)
 {
 	if (traj.empty())
-		throw std::runtime_error("return-to-start error of an empty trajectory");
+		throw std::runtime_error(
+		    "return-to-start error of an empty trajectory");
 	return returnToStartError(traj.front(), traj.back());
 }
 
 ReturnToStartError returnToStartErrorVsGt(const core::StampedPose& est_first,
-										  const core::StampedPose& est_last,
-										  const Eigen::Isometry3d& gt_first,
-										  const Eigen::Isometry3d& gt_last)
+                                          const core::StampedPose& est_last,
+                                          const Eigen::Isometry3d& gt_first,
+                                          const Eigen::Isometry3d& gt_last)
 {
 	const Eigen::Matrix3d Re =
-		est_first.pose.linear().transpose() * est_last.pose.linear();
+	    est_first.pose.linear().transpose() * est_last.pose.linear();
 	const Eigen::Matrix3d Rg = gt_first.linear().transpose() * gt_last.linear();
 	return closureFrom(Rg.transpose() * Re,
-					   levelDisplacement(est_first.pose, est_last.pose) -
-						   levelDisplacement(gt_first, gt_last),
-					   est_first.t_s, est_last.t_s);
+	                   levelDisplacement(est_first.pose, est_last.pose) -
+	                       levelDisplacement(gt_first, gt_last),
+	                   est_first.t_s, est_last.t_s);
 }
 
-GnssDriftResult gnssDrift(const core::Trajectory& est, const PositionTrack& gnss,
-						  const GnssDriftOptions& opts)
+GnssDriftResult gnssDrift(const core::Trajectory& est,
+                          const PositionTrack& gnss,
+                          const GnssDriftOptions& opts)
 {
 	if (!(opts.interval_s > 0))
 		throw std::invalid_argument("GNSS drift interval must be > 0");
@@ -275,10 +286,10 @@ GnssDriftResult gnssDrift(const core::Trajectory& est, const PositionTrack& gnss
 	const double t1 = std::min(est.back().t_s, gnss.back().t_s);
 	if (t0 > t1)
 		throw std::runtime_error(
-			"GNSS track (" + fmtTime(gnss.front().t_s) + " .. " +
-			fmtTime(gnss.back().t_s) + " s) and estimate (" +
-			fmtTime(est.front().t_s) + " .. " + fmtTime(est.back().t_s) +
-			" s) do not overlap in time");
+		    "GNSS track (" + fmtTime(gnss.front().t_s) + " .. " +
+		    fmtTime(gnss.back().t_s) + " s) and estimate (" +
+		    fmtTime(est.front().t_s) + " .. " + fmtTime(est.back().t_s) +
+		    " s) do not overlap in time");
 	r.t0_s = t0;
 	std::vector<double> d3, d2;
 	// Integer step count avoids accumulating rounding in t0 + k * interval.
@@ -287,17 +298,17 @@ GnssDriftResult gnssDrift(const core::Trajectory& est, const PositionTrack& gnss
 		const double tk = t0 + static_cast<double>(k) * opts.interval_s;
 		if (tk > t1 + 1e-9) break;
 		r.sample_times++;
-		const auto it = std::lower_bound(
-			gnss.begin(), gnss.end(), tk,
-			[](const PositionFix& f, double v) { return f.t_s < v; });
+		const auto it = std::lower_bound(gnss.begin(), gnss.end(), tk,
+		                                 [](const PositionFix& f, double v)
+		                                 { return f.t_s < v; });
 		const PositionFix* best = nullptr;
 		if (it != gnss.end()) best = &*it;
 		if (it != gnss.begin() &&
-			(!best || tk - (it - 1)->t_s < best->t_s - tk))
+		    (!best || tk - (it - 1)->t_s < best->t_s - tk))
 			best = &*(it - 1);
 		Eigen::Isometry3d pe;
 		if (!best || std::abs(best->t_s - tk) > opts.max_fix_offset_s ||
-			!core::interpolatePose(est, best->t_s, pe))
+		    !core::interpolatePose(est, best->t_s, pe))
 		{
 			r.skipped_no_fix++;
 			continue;

@@ -15,7 +15,7 @@ std::vector<TreeRecord> readTreesCsv(const std::string& path)
 {
 	const CsvTable csv = CsvTable::read(path);
 	const size_t cid = csv.column("id"), cx = csv.column("x"),
-				 cy = csv.column("y"), cd = csv.column("dbh_m");
+	             cy = csv.column("y"), cd = csv.column("dbh_m");
 	const auto cs = csv.findColumn("sapling");
 	std::vector<TreeRecord> trees;
 	for (size_t r = 0; r < csv.rows(); r++)
@@ -27,8 +27,8 @@ std::vector<TreeRecord> readTreesCsv(const std::string& path)
 		t.dbh_m = csv.number(r, cd);
 		if (t.dbh_m < 0)
 			throw std::runtime_error(csv.where(r, cd) +
-									 ": expected a DBH >= 0 in metres, got '" +
-									 csv.cell(r, cd) + "'");
+			                         ": expected a DBH >= 0 in metres, got '" +
+			                         csv.cell(r, cd) + "'");
 		if (cs) t.sapling = csv.boolean(r, *cs);
 		t.line = csv.lineOf(r);
 		trees.push_back(t);
@@ -40,8 +40,8 @@ std::vector<Region> readRegionsCsv(const std::string& path)
 {
 	const CsvTable csv = CsvTable::read(path);
 	const size_t cn = csv.column("name"), c0 = csv.column("xmin"),
-				 c1 = csv.column("ymin"), c2 = csv.column("xmax"),
-				 c3 = csv.column("ymax");
+	             c1 = csv.column("ymin"), c2 = csv.column("xmax"),
+	             c3 = csv.column("ymax");
 	std::vector<Region> out;
 	std::set<std::string> names;
 	for (size_t r = 0; r < csv.rows(); r++)
@@ -52,17 +52,17 @@ std::vector<Region> readRegionsCsv(const std::string& path)
 			throw std::runtime_error(csv.where(r, cn) + ": empty region name");
 		if (!names.insert(g.name).second)
 			throw std::runtime_error(csv.where(r, cn) + ": region '" + g.name +
-									 "' defined twice");
+			                         "' defined twice");
 		g.xmin = csv.number(r, c0);
 		g.ymin = csv.number(r, c1);
 		g.xmax = csv.number(r, c2);
 		g.ymax = csv.number(r, c3);
 		if (g.xmin > g.xmax)
 			throw std::runtime_error(csv.where(r, c2) +
-									 ": expected xmax >= xmin");
+			                         ": expected xmax >= xmin");
 		if (g.ymin > g.ymax)
 			throw std::runtime_error(csv.where(r, c3) +
-									 ": expected ymax >= ymin");
+			                         ": expected ymax >= ymin");
 		out.push_back(g);
 	}
 	if (out.empty())
@@ -79,7 +79,8 @@ Region allRegion()
 DbhErrors dbhErrors(const std::vector<double>& x, const std::vector<double>& y)
 {
 	if (x.size() != y.size())
-		throw std::invalid_argument("dbhErrors: predicted and actual differ in size");
+		throw std::invalid_argument(
+		    "dbhErrors: predicted and actual differ in size");
 	DbhErrors e;
 	e.count = x.size();
 	if (x.empty()) return e;
@@ -112,8 +113,8 @@ DbhErrors dbhErrors(const std::vector<double>& x, const std::vector<double>& y)
 }
 
 std::vector<GatedMatch> matchTrees(const std::vector<TreeRecord>& gt,
-								   const std::vector<TreeRecord>& est,
-								   double max_match_m)
+                                   const std::vector<TreeRecord>& est,
+                                   double max_match_m)
 {
 	std::vector<Eigen::Vector2d> a, b;
 	for (const auto& t : gt) a.emplace_back(t.x, t.y);
@@ -126,23 +127,26 @@ namespace
 std::pair<int64_t, int64_t> cellKey(double x, double y, double cell)
 {
 	return {static_cast<int64_t>(std::floor(x / cell)),
-			static_cast<int64_t>(std::floor(y / cell))};
+	        static_cast<int64_t>(std::floor(y / cell))};
 }
 
 double pointSegmentDistance(const Eigen::Vector2d& p, const Eigen::Vector2d& a,
-							const Eigen::Vector2d& b)
+                            const Eigen::Vector2d& b)
 {
 	const Eigen::Vector2d ab = b - a;
 	const double len2 = ab.squaredNorm();
-	const double t = len2 > 0 ? std::clamp((p - a).dot(ab) / len2, 0.0, 1.0) : 0.0;
+	const double t =
+	    len2 > 0 ? std::clamp((p - a).dot(ab) / len2, 0.0, 1.0) : 0.0;
 	return (a + t * ab - p).norm();
 }
 }  // namespace
 
-TrajectoryCorridor::TrajectoryCorridor(const core::Trajectory& traj, double cell_m)
-	: cell_m_(cell_m)
+TrajectoryCorridor::TrajectoryCorridor(const core::Trajectory& traj,
+                                       double cell_m)
+    : cell_m_(cell_m)
 {
-	if (!(cell_m > 0)) throw std::invalid_argument("TrajectoryCorridor: cell must be > 0");
+	if (!(cell_m > 0))
+		throw std::invalid_argument("TrajectoryCorridor: cell must be > 0");
 	std::vector<Eigen::Vector2d> pts;
 	for (const auto& p : traj) pts.push_back(p.pose.translation().head<2>());
 	if (pts.size() == 1) pts.push_back(pts[0]);
@@ -158,7 +162,8 @@ TrajectoryCorridor::TrajectoryCorridor(const core::Trajectory& traj, double cell
 		std::pair<int64_t, int64_t> last{INT64_MIN, INT64_MIN};
 		for (int k = 0; k <= n; k++)
 		{
-			const Eigen::Vector2d q = pts[i - 1] + (pts[i] - pts[i - 1]) * (double(k) / n);
+			const Eigen::Vector2d q =
+			    pts[i - 1] + (pts[i] - pts[i - 1]) * (double(k) / n);
 			const auto key = cellKey(q.x(), q.y(), cell_m);
 			if (key == last) continue;
 			cells_.push_back({key, s});
@@ -178,8 +183,8 @@ double TrajectoryCorridor::nearbyDistance(double x, double y) const
 		for (int64_t dy = -2; dy <= 2; dy++)
 		{
 			const std::pair<int64_t, int64_t> key{c.first + dx, c.second + dy};
-			auto it = std::lower_bound(
-				cells_.begin(), cells_.end(), std::make_pair(key, size_t{0}));
+			auto it = std::lower_bound(cells_.begin(), cells_.end(),
+			                           std::make_pair(key, size_t{0}));
 			for (; it != cells_.end() && it->first == key; ++it)
 			{
 				const auto& s = segments_[it->second];
@@ -201,7 +206,8 @@ double TrajectoryCorridor::distance(double x, double y) const
 	double best = nearbyDistance(x, y);
 	if (best <= cell_m_) return best;
 	for (const auto& s : segments_)
-		best = std::min(best, pointSegmentDistance(Eigen::Vector2d(x, y), s.a, s.b));
+		best = std::min(best,
+		                pointSegmentDistance(Eigen::Vector2d(x, y), s.a, s.b));
 	return best;
 }
 
@@ -209,10 +215,14 @@ const char* toString(GtTreeStatus s)
 {
 	switch (s)
 	{
-		case GtTreeStatus::Evaluated: return "evaluated";
-		case GtTreeStatus::Sapling: return "sapling";
-		case GtTreeStatus::BelowMinDbh: return "below_min_dbh";
-		case GtTreeStatus::OutOfRange: return "out_of_range";
+		case GtTreeStatus::Evaluated:
+			return "evaluated";
+		case GtTreeStatus::Sapling:
+			return "sapling";
+		case GtTreeStatus::BelowMinDbh:
+			return "below_min_dbh";
+		case GtTreeStatus::OutOfRange:
+			return "out_of_range";
 	}
 	return "?";
 }
@@ -221,29 +231,33 @@ const char* toString(EstTreeStatus s)
 {
 	switch (s)
 	{
-		case EstTreeStatus::TruePositive: return "true_positive";
-		case EstTreeStatus::FalsePositive: return "false_positive";
-		case EstTreeStatus::MatchedExcluded: return "matched_excluded";
-		case EstTreeStatus::OutOfRange: return "out_of_range";
+		case EstTreeStatus::TruePositive:
+			return "true_positive";
+		case EstTreeStatus::FalsePositive:
+			return "false_positive";
+		case EstTreeStatus::MatchedExcluded:
+			return "matched_excluded";
+		case EstTreeStatus::OutOfRange:
+			return "out_of_range";
 	}
 	return "?";
 }
 
 void detectionScores(size_t tp, size_t fn, size_t fp, double& recall,
-					 double& precision, double& f1)
+                     double& precision, double& f1)
 {
 	recall = tp + fn ? double(tp) / double(tp + fn) : kNaN;
 	precision = tp + fp ? double(tp) / double(tp + fp) : kNaN;
 	f1 = (tp + fn && tp + fp && recall + precision > 0)
-			 ? 2 * recall * precision / (recall + precision)
-			 : (tp + fn && tp + fp ? 0.0 : kNaN);
+	         ? 2 * recall * precision / (recall + precision)
+	         : (tp + fn && tp + fp ? 0.0 : kNaN);
 }
 
 TreeEvaluation evaluateTrees(const std::vector<TreeRecord>& gt,
-							 const std::vector<TreeRecord>& est,
-							 const TreeEvalOptions& opts,
-							 const core::Trajectory& traj,
-							 const std::vector<Region>& regions)
+                             const std::vector<TreeRecord>& est,
+                             const TreeEvalOptions& opts,
+                             const core::Trajectory& traj,
+                             const std::vector<Region>& regions)
 {
 	if (!(opts.max_match_m > 0))
 		throw std::invalid_argument("max_match_m must be > 0");
@@ -252,9 +266,8 @@ TreeEvaluation evaluateTrees(const std::vector<TreeRecord>& gt,
 	std::unique_ptr<TrajectoryCorridor> corridor;
 	if (use_range)
 		corridor = std::make_unique<TrajectoryCorridor>(traj, opts.max_range_m);
-	auto inRange = [&](double x, double y) {
-		return !use_range || corridor->within(x, y);
-	};
+	auto inRange = [&](double x, double y)
+	{ return !use_range || corridor->within(x, y); };
 
 	for (const auto& t : gt)
 	{
@@ -268,10 +281,18 @@ TreeEvaluation evaluateTrees(const std::vector<TreeRecord>& gt,
 		ev.gt_status.push_back(s);
 		switch (s)
 		{
-			case GtTreeStatus::Evaluated: ev.gt_evaluated++; break;
-			case GtTreeStatus::Sapling: ev.gt_sapling++; break;
-			case GtTreeStatus::BelowMinDbh: ev.gt_below_min_dbh++; break;
-			case GtTreeStatus::OutOfRange: ev.gt_out_of_range++; break;
+			case GtTreeStatus::Evaluated:
+				ev.gt_evaluated++;
+				break;
+			case GtTreeStatus::Sapling:
+				ev.gt_sapling++;
+				break;
+			case GtTreeStatus::BelowMinDbh:
+				ev.gt_below_min_dbh++;
+				break;
+			case GtTreeStatus::OutOfRange:
+				ev.gt_out_of_range++;
+				break;
 		}
 	}
 
@@ -287,18 +308,26 @@ TreeEvaluation evaluateTrees(const std::vector<TreeRecord>& gt,
 		EstTreeStatus s;
 		if (est_partner[j] >= 0)
 			s = ev.gt_status[est_partner[j]] == GtTreeStatus::Evaluated
-					? EstTreeStatus::TruePositive
-					: EstTreeStatus::MatchedExcluded;
+			        ? EstTreeStatus::TruePositive
+			        : EstTreeStatus::MatchedExcluded;
 		else
 			s = inRange(est[j].x, est[j].y) ? EstTreeStatus::FalsePositive
-											: EstTreeStatus::OutOfRange;
+			                                : EstTreeStatus::OutOfRange;
 		ev.est_status.push_back(s);
 		switch (s)
 		{
-			case EstTreeStatus::TruePositive: ev.tp++; break;
-			case EstTreeStatus::FalsePositive: ev.fp++; break;
-			case EstTreeStatus::MatchedExcluded: ev.est_matched_excluded++; break;
-			case EstTreeStatus::OutOfRange: ev.est_out_of_range++; break;
+			case EstTreeStatus::TruePositive:
+				ev.tp++;
+				break;
+			case EstTreeStatus::FalsePositive:
+				ev.fp++;
+				break;
+			case EstTreeStatus::MatchedExcluded:
+				ev.est_matched_excluded++;
+				break;
+			case EstTreeStatus::OutOfRange:
+				ev.est_out_of_range++;
+				break;
 		}
 	}
 	for (size_t i = 0; i < gt.size(); i++)
@@ -326,7 +355,7 @@ TreeEvaluation evaluateTrees(const std::vector<TreeRecord>& gt,
 		for (size_t i = 0; i < gt.size(); i++)
 		{
 			if (ev.gt_status[i] != GtTreeStatus::Evaluated ||
-				!region.contains(gt[i].x, gt[i].y))
+			    !region.contains(gt[i].x, gt[i].y))
 				continue;
 			meas.push_back(gt[i].dbh_m);
 			if (gt_partner[i] < 0)
@@ -342,7 +371,7 @@ TreeEvaluation evaluateTrees(const std::vector<TreeRecord>& gt,
 		}
 		for (size_t j = 0; j < est.size(); j++)
 			if (ev.est_status[j] == EstTreeStatus::FalsePositive &&
-				region.contains(est[j].x, est[j].y))
+			    region.contains(est[j].x, est[j].y))
 			{
 				rs.fp++;
 				estd.push_back(est[j].dbh_m);

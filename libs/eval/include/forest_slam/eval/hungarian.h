@@ -27,7 +27,7 @@ struct GatedMatch
  * the gate graph (grid-bucketed), so thousands of trees stay fast.
  * Matches are sorted by `a`. */
 std::vector<GatedMatch> matchGated(const std::vector<Eigen::Vector2d>& a,
-								   const std::vector<Eigen::Vector2d>& b,
-								   double gate_m);
+                                   const std::vector<Eigen::Vector2d>& b,
+                                   double gate_m);
 
 }  // namespace forest_slam::eval

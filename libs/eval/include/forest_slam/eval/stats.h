@@ -13,11 +13,11 @@ struct SummaryStats
 {
 	size_t count = 0;
 	double mean = kNaN;
-	double std = kNaN;	///< sample standard deviation (N-1); 0 when N == 1
+	double std = kNaN;  ///< sample standard deviation (N-1); 0 when N == 1
 	double min = kNaN;
 	double max = kNaN;
 	double median = kNaN;
-	double rmse = kNaN;	 ///< sqrt(mean(v^2)): the RMS of the values
+	double rmse = kNaN;  ///< sqrt(mean(v^2)): the RMS of the values
 };
 
 /** All fields NaN (count 0) for an empty input. */

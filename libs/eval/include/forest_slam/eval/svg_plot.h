@@ -29,10 +29,10 @@ class SvgPanel
 
 	/** Data range; adds a small margin; equal_aspect keeps 1 m = 1 m. */
 	void setRange(double xmin, double xmax, double ymin, double ymax,
-				  bool equal_aspect);
+	              bool equal_aspect);
 	/** Extends a running bounding box (call before setRange). */
 	static void extend(double x, double y, double& xmin, double& xmax,
-					   double& ymin, double& ymax);
+	                   double& ymin, double& ymax);
 
 	void polyline(const std::vector<Eigen::Vector2d>& pts, const SvgStyle& s);
 	void line(double x0, double y0, double x1, double y1, const SvgStyle& s);
@@ -40,7 +40,7 @@ class SvgPanel
 	void cross(double x, double y, double half_px, const SvgStyle& s);
 	/** Frame, ticks with values, axis labels and title. */
 	void axes(const std::string& title, const std::string& xlabel,
-			  const std::string& ylabel);
+	          const std::string& ylabel);
 	void legend(const std::vector<std::pair<std::string, SvgStyle>>& entries);
 
 	const std::string& body() const { return body_; }
@@ -50,15 +50,15 @@ class SvgPanel
 
    private:
 	double left_, top_, width_, height_;
-	double plot_l_, plot_t_, plot_w_, plot_h_;	// inner plotting area
+	double plot_l_, plot_t_, plot_w_, plot_h_;  // inner plotting area
 	double xmin_ = 0, xmax_ = 1, ymin_ = 0, ymax_ = 1;
 	std::string body_;
 };
 
 /** Writes a complete SVG document holding the panels. */
 void writeSvgDocument(std::ostream& os, double width_px, double height_px,
-					  const std::vector<const SvgPanel*>& panels,
-					  const std::string& title);
+                      const std::vector<const SvgPanel*>& panels,
+                      const std::string& title);
 
 std::string svgEscape(const std::string& s);
 

@@ -34,7 +34,7 @@ struct TrajReport
 	AteResult ate_unaligned, ate_aligned;
 	RpeResult rpe;
 	VerticalDrift vertical;
-	ReturnToStartError return_to_start;	 ///< estimate's first vs last pose
+	ReturnToStartError return_to_start;  ///< estimate's first vs last pose
 	std::optional<ReturnToStartError> gt_return_to_start;  ///< same span
 	std::optional<ReturnToStartError> return_to_start_vs_gt;
 	std::optional<GnssDriftResult> gnss;
@@ -42,15 +42,15 @@ struct TrajReport
 
 /** Throws std::runtime_error on empty inputs or no time overlap. */
 TrajReport evaluateTrajectory(const TrajEvalInputs& in,
-							  const TrajEvalOptions& opts);
+                              const TrajEvalOptions& opts);
 
 void printTrajReport(std::ostream& os, const TrajEvalInputs& in,
-					 const TrajReport& r);
+                     const TrajReport& r);
 void writeTrajJson(std::ostream& os, const TrajEvalInputs& in,
-				   const TrajReport& r);
+                   const TrajReport& r);
 /** Top view (GT, estimate, aligned estimate, GNSS samples) and height
  * profile along the GT distance travelled. */
 void writeTrajSvg(std::ostream& os, const TrajEvalInputs& in,
-				  const TrajReport& r);
+                  const TrajReport& r);
 
 }  // namespace forest_slam::eval

@@ -31,16 +31,16 @@ struct AssociationOptions
 struct Association
 {
 	PosePairs pairs;
-	size_t est_outside_gt = 0;	///< estimate stamps outside the GT time span
-	size_t est_in_gt_gap = 0;  ///< inside the span but in a GT gap
+	size_t est_outside_gt = 0;  ///< estimate stamps outside the GT time span
+	size_t est_in_gt_gap = 0;   ///< inside the span but in a GT gap
 };
 
 /** Every estimate pose is paired with the GT interpolated at its stamp
  * (core::interpolatePose: linear position, slerp rotation). Throws
  * std::runtime_error if no pose can be associated (no time overlap). */
 Association associateByInterpolation(const core::Trajectory& gt,
-									 const core::Trajectory& est,
-									 const AssociationOptions& opts = {});
+                                     const core::Trajectory& est,
+                                     const AssociationOptions& opts = {});
 
 /** Cumulative 3D path length of the GT along the pairs: out[i] is the
  * distance travelled from pairs[0] to pairs[i]. */
@@ -49,12 +49,12 @@ std::vector<double> gtDistanceTravelled(const PosePairs& pairs);
 /** Least-squares rigid transform (no scale) T minimising
  * sum |dst_i - T src_i|^2 (Umeyama 1991, via Eigen::umeyama). */
 Eigen::Isometry3d umeyamaSe3(const std::vector<Eigen::Vector3d>& src,
-							 const std::vector<Eigen::Vector3d>& dst);
+                             const std::vector<Eigen::Vector3d>& dst);
 
 struct AteResult
 {
-	SummaryStats trans_m;	///< |p_gt - p_est'| per pair; .rmse is "the" ATE
-	SummaryStats rot_deg;	///< angle(R_gt^T R_est') per pair
+	SummaryStats trans_m;  ///< |p_gt - p_est'| per pair; .rmse is "the" ATE
+	SummaryStats rot_deg;  ///< angle(R_gt^T R_est') per pair
 	/** Applied to the estimate (est' = alignment * est); identity if not
 	 * aligned. */
 	Eigen::Isometry3d alignment = Eigen::Isometry3d::Identity();
@@ -89,15 +89,16 @@ struct RpeResult
  * length L, ending at the first pair j whose GT distance travelled from i
  * is >= L; E = (est_i^-1 est_j)^-1 (gt_i^-1 gt_j); errors |t(E)|/L and
  * angle(R(E))/L, averaged over all segments. */
-RpeResult relativePoseError(const PosePairs& pairs, const RpeOptions& opts = {});
+RpeResult relativePoseError(const PosePairs& pairs,
+                            const RpeOptions& opts = {});
 
 struct VerticalDrift
 {
-	double distance_m = kNaN;	///< GT path length over the pairs
+	double distance_m = kNaN;     ///< GT path length over the pairs
 	double end_abs_err_m = kNaN;  ///< |e_z| at the last pair
 	double max_abs_err_m = kNaN;  ///< max |e_z| over the pairs
-	double end_pct = kNaN;	///< end_abs_err_m / distance_m * 100
-	double max_pct = kNaN;	///< max_abs_err_m / distance_m * 100
+	double end_pct = kNaN;        ///< end_abs_err_m / distance_m * 100
+	double max_pct = kNaN;        ///< max_abs_err_m / distance_m * 100
 };
 
 /** e_z(i) = (z_est(i) - z_est(0)) - (z_gt(i) - z_gt(0)): change of the
@@ -109,7 +110,8 @@ VerticalDrift verticalDrift(const PosePairs& pairs);
 struct ReturnToStartError
 {
 	double t_first_s = kNaN, t_last_s = kNaN;
-	/** Z-Y-X Euler angles of R_first^T R_last (R = Rz(yaw) Ry(pitch) Rx(roll)).*/
+	/** Z-Y-X Euler angles of R_first^T R_last (R = Rz(yaw) Ry(pitch)
+	 * Rx(roll)).*/
 	double roll_deg = kNaN, pitch_deg = kNaN, yaw_deg = kNaN;
 	/** sqrt(roll^2 + pitch^2 + yaw^2): the paper's "Total Rot." (its Table 5
 	 * rows satisfy this, e.g. 5.68, 3.95, 6.14 -> 9.25). */
@@ -124,7 +126,7 @@ struct ReturnToStartError
 };
 
 ReturnToStartError returnToStartError(const core::StampedPose& first,
-									  const core::StampedPose& last);
+                                      const core::StampedPose& last);
 /** First and last poses of a trajectory (throws if empty). */
 ReturnToStartError returnToStartError(const core::Trajectory& traj);
 
@@ -133,9 +135,9 @@ ReturnToStartError returnToStartError(const core::Trajectory& traj);
  * components from R_gt_rel^T R_est_rel (R_rel = R_first^T R_last), x/y/z the
  * difference of the two level-frame displacements. */
 ReturnToStartError returnToStartErrorVsGt(const core::StampedPose& est_first,
-										  const core::StampedPose& est_last,
-										  const Eigen::Isometry3d& gt_first,
-										  const Eigen::Isometry3d& gt_last);
+                                          const core::StampedPose& est_last,
+                                          const Eigen::Isometry3d& gt_first,
+                                          const Eigen::Isometry3d& gt_last);
 
 struct GnssDriftOptions
 {
@@ -147,8 +149,9 @@ struct GnssDriftOptions
 
 struct GnssDriftSample
 {
-	double t_s = 0;	 ///< time of the GNSS fix used
-	Eigen::Vector3d est = Eigen::Vector3d::Zero(), gnss = Eigen::Vector3d::Zero();
+	double t_s = 0;  ///< time of the GNSS fix used
+	Eigen::Vector3d est = Eigen::Vector3d::Zero(),
+	                gnss = Eigen::Vector3d::Zero();
 	double dist_3d_m = 0, dist_2d_m = 0;
 	double aligned_dist_3d_m = kNaN;
 };
@@ -173,8 +176,9 @@ struct GnssDriftResult
  * last fix); at each, the fix nearest to t_k (|dt| <= max_fix_offset_s) is
  * compared with the estimate interpolated at that fix's time. Throws if the
  * two tracks do not overlap in time. */
-GnssDriftResult gnssDrift(const core::Trajectory& est, const PositionTrack& gnss,
-						  const GnssDriftOptions& opts = {});
+GnssDriftResult gnssDrift(const core::Trajectory& est,
+                          const PositionTrack& gnss,
+                          const GnssDriftOptions& opts = {});
 
 /** Rotation angle of R in degrees, in [0, 180]. */
 double rotationAngleDeg(const Eigen::Matrix3d& R);

@@ -55,13 +55,13 @@ struct DbhErrors
 /** Throws std::invalid_argument if the sizes differ. MAPE is NaN if any
  * actual value is 0. */
 DbhErrors dbhErrors(const std::vector<double>& predicted_m,
-					const std::vector<double>& actual_m);
+                    const std::vector<double>& actual_m);
 
 /** Hungarian matching on horizontal distance with a gate (matchGated):
  * maximum number of pairs, then minimum total distance. */
 std::vector<GatedMatch> matchTrees(const std::vector<TreeRecord>& gt,
-								   const std::vector<TreeRecord>& est,
-								   double max_match_m);
+                                   const std::vector<TreeRecord>& est,
+                                   double max_match_m);
 
 /** Horizontal distance from (x, y) to the polyline through the trajectory
  * positions, accelerated with a grid whose cell is `cell_m`. */
@@ -83,7 +83,8 @@ class TrajectoryCorridor
 	};
 	double cell_m_;
 	std::vector<Segment> segments_;
-	std::vector<std::pair<std::pair<int64_t, int64_t>, size_t>> cells_;  // sorted
+	std::vector<std::pair<std::pair<int64_t, int64_t>, size_t>>
+	    cells_;  // sorted
 };
 
 enum class GtTreeStatus
@@ -96,10 +97,10 @@ enum class GtTreeStatus
 
 enum class EstTreeStatus
 {
-	TruePositive,  ///< matched to an evaluated GT tree
-	FalsePositive,	///< unmatched, inside the evaluated area
+	TruePositive,     ///< matched to an evaluated GT tree
+	FalsePositive,    ///< unmatched, inside the evaluated area
 	MatchedExcluded,  ///< matched to a GT tree that is not evaluated: ignored
-	OutOfRange	///< unmatched, outside the evaluated area: ignored
+	OutOfRange        ///< unmatched, outside the evaluated area: ignored
 };
 
 const char* toString(GtTreeStatus s);
@@ -117,13 +118,13 @@ struct TreeEvalOptions
 struct RegionTreeStats
 {
 	Region region;
-	size_t measured_count = 0;	///< evaluated GT trees in the region
+	size_t measured_count = 0;  ///< evaluated GT trees in the region
 	SummaryStats measured_dbh_m;
-	size_t estimated_count = 0;	 ///< TP (by GT position) + FP (own position)
+	size_t estimated_count = 0;  ///< TP (by GT position) + FP (own position)
 	SummaryStats estimated_dbh_m;
 	size_t tp = 0, fn = 0, fp = 0;
 	double recall = kNaN, precision = kNaN, f1 = kNaN;
-	DbhErrors dbh;	///< over the region's true positives
+	DbhErrors dbh;  ///< over the region's true positives
 };
 
 struct TreeEvaluation
@@ -135,9 +136,9 @@ struct TreeEvaluation
 	std::vector<GatedMatch> matches;
 	std::vector<GatedMatch> true_positives;
 	size_t gt_evaluated = 0, gt_sapling = 0, gt_below_min_dbh = 0,
-		   gt_out_of_range = 0;
+	       gt_out_of_range = 0;
 	size_t tp = 0, fn = 0, fp = 0, est_matched_excluded = 0,
-		   est_out_of_range = 0;
+	       est_out_of_range = 0;
 	double recall = kNaN, precision = kNaN, f1 = kNaN;
 	SummaryStats position_err_m;  ///< horizontal distance over TPs
 	DbhErrors dbh;
@@ -149,15 +150,14 @@ struct TreeEvaluation
  * that an estimate of an excluded tree is ignored instead of counted as a
  * false positive; an unmatched estimate is a false positive only inside the
  * evaluated area (same range rule on its own position). */
-TreeEvaluation evaluateTrees(const std::vector<TreeRecord>& gt,
-							 const std::vector<TreeRecord>& est,
-							 const TreeEvalOptions& opts,
-							 const core::Trajectory& traj = {},
-							 const std::vector<Region>& regions = {allRegion()});
+TreeEvaluation evaluateTrees(
+    const std::vector<TreeRecord>& gt, const std::vector<TreeRecord>& est,
+    const TreeEvalOptions& opts, const core::Trajectory& traj = {},
+    const std::vector<Region>& regions = {allRegion()});
 
 /** recall = tp/(tp+fn), precision = tp/(tp+fp), F1 = harmonic mean; NaN
  * when a denominator is 0. */
 void detectionScores(size_t tp, size_t fn, size_t fp, double& recall,
-					 double& precision, double& f1);
+                     double& precision, double& f1);
 
 }  // namespace forest_slam::eval

@@ -9,19 +9,19 @@ namespace forest_slam::eval
 {
 struct TreeEvalInputs
 {
-	std::string gt_path, est_path, traj_path, regions_path;	 ///< for the report
+	std::string gt_path, est_path, traj_path, regions_path;  ///< for the report
 	std::vector<TreeRecord> gt, est;
-	core::Trajectory traj;	///< empty unless --traj
+	core::Trajectory traj;        ///< empty unless --traj
 	std::vector<Region> regions;  ///< empty -> one region "all"
 };
 
 void printTreeReport(std::ostream& os, const TreeEvalInputs& in,
-					 const TreeEvalOptions& opts, const TreeEvaluation& ev);
+                     const TreeEvalOptions& opts, const TreeEvaluation& ev);
 void writeTreeJson(std::ostream& os, const TreeEvalInputs& in,
-				   const TreeEvalOptions& opts, const TreeEvaluation& ev);
+                   const TreeEvalOptions& opts, const TreeEvaluation& ev);
 /** Tree map (GT, estimates by status, match lines, trajectory) and DBH
  * estimated vs reference with the 1:1 line. */
 void writeTreeSvg(std::ostream& os, const TreeEvalInputs& in,
-				  const TreeEvalOptions& opts, const TreeEvaluation& ev);
+                  const TreeEvalOptions& opts, const TreeEvaluation& ev);
 
 }  // namespace forest_slam::eval
