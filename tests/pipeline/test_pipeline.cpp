@@ -154,3 +154,44 @@ TEST(MappingJob, DamagedRawlogStillWritesOutputs)
 	EXPECT_EQ(io::readTum(job.out_dir + "/trajectory.tum").size(), part.stats.scans_mapped);
 	EXPECT_NO_THROW(pipeline::loadForestMap(job.out_dir + "/forest.map"));
 }
+
+TEST(Pipeline, StaticPoseIsLevelledWithImuGravity)
+{
+	auto cfg = core::TrackedConfig::fromText("[pipeline]\npose_source = static\n", "s.ini");
+	pipeline::MappingPipeline p(pipeline::MappingConfig::load(cfg));
+	// Rig tilted by 10 deg roll: at rest the accelerometer (IMU frame =
+	// vehicle frame here) measures +g along the rig's tilted "up".
+	const double roll = 10 * M_PI / 180;
+	const Eigen::Matrix3d R_tilt =
+		Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX()).toRotationMatrix();
+	const Eigen::Vector3d f = R_tilt.transpose() * Eigen::Vector3d(0, 0, 9.81);
+	for (int i = 0; i < 50; i++)
+	{
+		auto imu = std::make_shared<mrpt::obs::CObservationIMU>();
+		imu->sensorLabel = "imu";
+		imu->set(mrpt::obs::IMU_X_ACC, f.x() + 0.01 * std::sin(i));
+		imu->set(mrpt::obs::IMU_Y_ACC, f.y());
+		imu->set(mrpt::obs::IMU_Z_ACC, f.z());
+		p.process(imu);
+	}
+	test_support::MovingSensorWorld w;
+	w.speed_mps = 0;
+	p.process(std::make_shared<mrpt::obs::CObservationRotatingScan>(w.scan(0)));
+	ASSERT_EQ(p.trajectory().size(), 1u);
+	const Eigen::Matrix3d R = p.trajectory()[0].pose.linear();
+	// The lidar's z axis expressed in the map is the tilted up vector.
+	EXPECT_NEAR(R(2, 2), std::cos(roll), 1e-3);
+	EXPECT_NEAR(std::atan2(R(2, 1), R(2, 2)), roll, 2e-3);
+	// Heading removed: the lidar x axis has no y component in the map.
+	EXPECT_NEAR(R(1, 0), 0, 1e-9);
+	EXPECT_TRUE(p.trajectory()[0].pose.translation().isZero());
+}
+
+TEST(Pipeline, LevelledOrientationKeepsHeadingAlongX)
+{
+	const Eigen::Matrix3d lidar_on_vehicle =
+		Eigen::AngleAxisd(0.7, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+	const Eigen::Matrix3d R = pipeline::MappingPipeline::levelledOrientation(
+		Eigen::Vector3d(0, 0, 9.8), lidar_on_vehicle);
+	EXPECT_TRUE(R.isIdentity(1e-9));
+}

@@ -60,7 +60,10 @@ void MappingPipeline::process(const mrpt::obs::CObservation::Ptr& obs)
 	}
 	else if (label == o.imu_label &&
 			 std::dynamic_pointer_cast<mrpt::obs::CObservationIMU>(obs))
-		stats_.imu++;  // consumed by the IMU/deskew stage (issue 5)
+	{
+		stats_.imu++;  // the IMU/deskew stage (issue 5) will consume these
+		if (!static_pose_) accumulateGravity(*obs);
+	}
 	else if (label == o.gnss_label &&
 			 std::dynamic_pointer_cast<mrpt::obs::CObservationGPS>(obs))
 		stats_.gnss++;	// consumed by the back-end (issue 8)
@@ -74,11 +77,62 @@ void MappingPipeline::process(const mrpt::obs::CObservation::Ptr& obs)
 	}
 }
 
+void MappingPipeline::accumulateGravity(const mrpt::obs::CObservation& o)
+{
+	const auto& imu = dynamic_cast<const mrpt::obs::CObservationIMU&>(o);
+	using mrpt::obs::IMU_X_ACC;
+	using mrpt::obs::IMU_Y_ACC;
+	using mrpt::obs::IMU_Z_ACC;
+	if (!imu.has(IMU_X_ACC) || !imu.has(IMU_Y_ACC) || !imu.has(IMU_Z_ACC)) return;
+	const Eigen::Vector3d a(imu.get(IMU_X_ACC), imu.get(IMU_Y_ACC), imu.get(IMU_Z_ACC));
+	if (!a.allFinite() || a.norm() < 5.0 || a.norm() > 15.0) return;  // not at rest
+	mrpt::poses::CPose3D imu_on_vehicle;
+	imu.getSensorPose(imu_on_vehicle);
+	gravity_sum_vehicle_ += imu_on_vehicle.getRotationMatrix().asEigen() * a;
+	gravity_samples_++;
+}
+
+Eigen::Matrix3d MappingPipeline::levelledOrientation(
+	const Eigen::Vector3d& up_vehicle, const Eigen::Matrix3d& lidar_on_vehicle)
+{
+	const Eigen::Matrix3d R_level =
+		Eigen::Quaterniond::FromTwoVectors(up_vehicle.normalized(), Eigen::Vector3d::UnitZ())
+			.toRotationMatrix();
+	const Eigen::Matrix3d R = R_level * lidar_on_vehicle;
+	// Heading of the lidar x axis projected on the horizontal plane.
+	const double yaw = std::atan2(R(1, 0), R(0, 0));
+	return Eigen::AngleAxisd(-yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix() * R;
+}
+
+Eigen::Isometry3d MappingPipeline::staticLidarPose(
+	const mrpt::poses::CPose3D& lidar_on_vehicle)
+{
+	if (!static_pose_)
+	{
+		Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+		if (gravity_samples_ > 0)
+		{
+			T.linear() = levelledOrientation(
+				gravity_sum_vehicle_ / static_cast<double>(gravity_samples_),
+				lidar_on_vehicle.getRotationMatrix().asEigen());
+			FS_LOG_INFO("static pose: map frame levelled with gravity from "
+						<< gravity_samples_ << " IMU samples");
+		}
+		else
+			core::logOnce(core::LogLevel::Warn, "static-no-imu",
+						  "static pose source without IMU samples before the "
+						  "first scan: the map frame is the first lidar frame "
+						  "(not levelled)");
+		static_pose_ = T;
+	}
+	return *static_pose_;
+}
+
 bool MappingPipeline::lidarPoseAt(double t_s, Eigen::Isometry3d& out) const
 {
 	if (cfg_.pipeline.poseSource() == PoseSource::Static)
 	{
-		out = Eigen::Isometry3d::Identity();
+		out = static_pose_ ? *static_pose_ : Eigen::Isometry3d::Identity();
 		return true;
 	}
 	return core::interpolatePose(*poses_, t_s, out, 1e-3);
@@ -120,6 +174,8 @@ void MappingPipeline::processScan(const mrpt::obs::CObservationRotatingScan& sca
 	}
 	stats_.points_in += pts.points.size();
 
+	if (cfg_.pipeline.poseSource() == PoseSource::Static)
+		staticLidarPose(scan.sensorPose);
 	Eigen::Isometry3d scan_pose;
 	if (!lidarPoseAt(stamp, scan_pose) ||
 		(cfg_.pipeline.deskew && !lidarPoseAt(stamp + pts.sweep_s, scan_pose)))

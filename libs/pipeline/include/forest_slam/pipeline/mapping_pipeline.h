@@ -10,6 +10,7 @@
 
 #include <cstdint>
 #include <optional>
+#include <mrpt/poses/CPose3D.h>
 
 namespace mrpt::obs
 {
@@ -62,11 +63,27 @@ class MappingPipeline
 	RunStats stats_;
 	bool have_last_scan_ = false;
 	double last_scan_stamp_s_ = 0;
+	// Static pose source: gravity from the IMU samples seen before the first
+	// scan levels the map frame (z up); frozen at the first scan.
+	Eigen::Vector3d gravity_sum_vehicle_ = Eigen::Vector3d::Zero();
+	uint64_t gravity_samples_ = 0;
+	std::optional<Eigen::Isometry3d> static_pose_;
+
+	void accumulateGravity(const mrpt::obs::CObservation& imu);
+	/** Lidar pose in the map frame for a sensor that does not move. */
+	Eigen::Isometry3d staticLidarPose(const mrpt::poses::CPose3D& lidar_on_vehicle);
 
 	void processScan(const mrpt::obs::CObservationRotatingScan& scan);
 	/** Lidar pose in the map frame at absolute time t (--poses files hold
 	 * lidar poses, like our own trajectory.tum, so they can be fed back). */
 	bool lidarPoseAt(double t_s, Eigen::Isometry3d& out) const;
+
+   public:
+	/** Levels a lidar orientation: R_level aligns the measured specific
+	 * force (up, in the vehicle frame) with +z, then the heading is removed
+	 * so x lies along the lidar's first heading. */
+	static Eigen::Matrix3d levelledOrientation(
+		const Eigen::Vector3d& up_in_vehicle, const Eigen::Matrix3d& lidar_on_vehicle);
 };
 
 }  // namespace forest_slam::pipeline
