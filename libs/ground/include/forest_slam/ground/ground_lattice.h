@@ -1,0 +1,94 @@
+#pragma once
+// Ground labelling on a 2D lattice (paper §4.1, after Rummelhard et al.):
+// each lattice node holds the terrain elevation h and two slopes (sx, sy)
+// with a variance; every point is assigned to its nearest node and labelled
+// ground / not ground by its height above the node's local plane. Node
+// estimates persist between scans (keyed by their global grid index in the
+// gravity-aligned map frame, so the motion estimate moves the prior with the
+// sensor) and serve as a prior where the current scan sees little ground.
+// The lattice doubles as a local terrain model (DTM).
+#include <mrpt/config/CLoadableOptions.h>
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <unordered_map>
+#include <vector>
+
+namespace forest_slam::ground
+{
+struct GroundOptions : public mrpt::config::CLoadableOptions
+{
+	double node_spacing_m = 1.0;  ///< lattice resolution
+	double radius_m = 40.0;	 ///< points farther from the sensor are not used
+	/** A point is ground if within this distance of its node's plane. */
+	double ground_threshold_m = 0.15;
+	/** Candidate ground points of a node: within this band above its
+	 * lowest point (ground under grass/litter is not a perfect plane). */
+	double lowest_band_m = 0.25;
+	double max_slope_deg = 35.0;  ///< steeper local planes are rejected
+	/** A node's level may exceed what a plane through the levels of the
+	 * nodes around it predicts by at most this much: rejects shrub tops and
+	 * stem bases taken for ground where the true ground is hidden. */
+	double max_step_m = 0.2;
+	int min_points_per_node = 3;
+	/** Per-scan growth of a node's prior variance [m^2] (terrain does not
+	 * change, but drift and mislabels must be forgettable). */
+	double prior_variance_growth_m2 = 0.0025;
+	double measurement_variance_floor_m2 = 0.0004;
+
+	void loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
+							const std::string& section) override;
+	void saveToConfigFile(mrpt::config::CConfigFileBase& c,
+						  const std::string& section) const override;
+};
+
+struct LatticeNode
+{
+	double h = 0, sx = 0, sy = 0;  ///< elevation [m] and slopes dz/dx, dz/dy
+	double var_h = 1e6;	 ///< variance of h [m^2]; large = unknown
+	uint32_t observations = 0;	///< scans that measured it
+};
+
+struct NodeKey
+{
+	int32_t i = 0, j = 0;
+	bool operator==(const NodeKey& o) const { return i == o.i && j == o.j; }
+};
+struct NodeKeyHash
+{
+	size_t operator()(const NodeKey& k) const
+	{
+		return (static_cast<size_t>(static_cast<uint32_t>(k.i)) << 32) ^
+			   static_cast<uint32_t>(k.j);
+	}
+};
+
+class GroundLattice
+{
+   public:
+	explicit GroundLattice(const GroundOptions& opts = GroundOptions());
+
+	/** Labels the points (gravity-aligned frame, e.g. the map frame) of one
+	 * scan seen from `sensor_xyz`: returns 1 for ground, 0 otherwise, and
+	 * updates the lattice. NaN points are labelled 0. */
+	std::vector<uint8_t> labelScan(const std::vector<Eigen::Vector3f>& pts,
+								   const Eigen::Vector3d& sensor_xyz);
+
+	/** Terrain elevation at (x, y) by bilinear interpolation of the known
+	 * nodes around it; false if none is known. */
+	bool heightAt(double x, double y, double& z) const;
+
+	const std::unordered_map<NodeKey, LatticeNode, NodeKeyHash>& nodes() const
+	{
+		return nodes_;
+	}
+	const GroundOptions& options() const { return opts_; }
+	NodeKey keyOf(double x, double y) const;
+	void clear() { nodes_.clear(); }
+
+   private:
+	GroundOptions opts_;
+	std::unordered_map<NodeKey, LatticeNode, NodeKeyHash> nodes_;
+};
+
+}  // namespace forest_slam::ground
