@@ -1,0 +1,53 @@
+#pragma once
+// Point cloud files from other tools (TLS scanners, other SLAM systems), read
+// for the standalone tree mode (issue 7). LAS is read by our own reader since
+// Debian ships no LAS library; LAZ (compressed) is rejected with a clear error.
+#include <Eigen/Core>
+
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace forest_slam::io
+{
+/** A cloud read from a file. Optional attributes are either empty or have one
+ * entry per point. Coordinates are in the file's frame (LAS: scale and offset
+ * applied), in double so that UTM coordinates keep millimetres. */
+struct PointCloudFile
+{
+	std::vector<Eigen::Vector3d> xyz;
+	std::vector<uint16_t> intensity;
+	std::vector<uint8_t> classification;
+	std::vector<double> gps_time_s;
+
+	size_t size() const { return xyz.size(); }
+};
+
+/** Any unreadable / invalid / truncated cloud file; the message names the
+ * file and, for binary formats, the byte offset where reading failed. */
+class CloudFileError : public std::runtime_error
+{
+   public:
+	using std::runtime_error::runtime_error;
+};
+
+/** LAS 1.2–1.4, point data formats 0–3 and 6–8 (extra bytes per record are
+ * skipped). Intensity and classification are always filled; GPS time for
+ * formats 1, 3, 6, 7, 8. */
+PointCloudFile readLas(const std::string& path);
+
+/** PLY, ascii or binary_little_endian; the `vertex` element must come first
+ * and have x, y, z (float or double). Other vertex properties are skipped,
+ * `intensity` (any scalar type) is kept when present. */
+PointCloudFile readPly(const std::string& path);
+
+/** PCD v0.7, DATA ascii or binary (not binary_compressed), fields x y z of
+ * type F (4 or 8 bytes); `intensity` kept when present. NaN points (organized
+ * clouds) are dropped. */
+PointCloudFile readPcd(const std::string& path);
+
+/** Dispatches on the extension (.las, .ply, .pcd, case-insensitive). */
+PointCloudFile readCloudFile(const std::string& path);
+
+}  // namespace forest_slam::io
