@@ -1,0 +1,62 @@
+#pragma once
+// Cluster-aware LOAM feature extraction (paper §4.3): the smoothness of a
+// point is computed only from its neighbours along the same ring *and in the
+// same cluster*, so a stem edge is never "smoothed" by the shrub behind it;
+// points with the highest values become edge features, the lowest planar
+// features. Because in-cluster windows hide range jumps, foreground
+// silhouettes (stem sides against the background) are added as edges
+// explicitly; ground points feed the planar set. Per ring the scan is cut into
+// sectors so features spread around the sensor (as LOAM does).
+#include <mrpt/config/CLoadableOptions.h>
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <vector>
+
+namespace forest_slam::features
+{
+struct FeatureOptions : public mrpt::config::CLoadableOptions
+{
+	int half_window = 5;  ///< neighbours each side (same ring, same cluster)
+	double edge_threshold = 0.1;  ///< smoothness above: edge candidate
+	double planar_threshold = 0.02;	 ///< below: planar candidate
+	int sectors_per_ring = 6;
+	int max_edges_per_sector = 4;
+	int max_planar_per_sector = 8;
+	/** A point whose ring neighbour belongs to another cluster and lies this
+	 * much farther away is on a foreground silhouette (a stem's side seen
+	 * against the background): an edge, whatever its in-cluster smoothness.
+	 * The background point beside it is not (it is the occluded side). */
+	double silhouette_gap_m = 0.3;
+	/** Ground points kept as planar features: every N-th per ring. */
+	int ground_decimation = 4;
+
+	void loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
+							const std::string& section) override;
+	void saveToConfigFile(mrpt::config::CConfigFileBase& c,
+						  const std::string& section) const override;
+};
+
+/** One point of the scan as the extractor needs it. */
+struct FeatureInputPoint
+{
+	Eigen::Vector3f xyz;  ///< sensor frame (after deskew)
+	uint16_t ring = 0;
+	uint16_t column = 0;
+	int32_t cluster = -1;  ///< -1 = not clustered (noise)
+	bool ground = false;
+};
+
+struct Features
+{
+	std::vector<uint32_t> edges;   ///< indices into the input
+	std::vector<uint32_t> planar;  ///< indices into the input
+	std::vector<float> smoothness;	///< per input point, -1 if not computed
+};
+
+/** LOAM smoothness |sum_j (X_j - X_i)| / (|S| |X_i|) over the same-ring,
+ * same-cluster window. */
+Features extractFeatures(const std::vector<FeatureInputPoint>& pts,
+						 const FeatureOptions& opts = FeatureOptions());
+
+}  // namespace forest_slam::features

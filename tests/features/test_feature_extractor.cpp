@@ -1,0 +1,97 @@
+#include <forest_slam/features/feature_extractor.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+using namespace forest_slam::features;
+
+namespace
+{
+/** One ring (elevation 0) seeing a wall at x=8 (cluster 0) except a stem
+ * (cylinder r=0.2 at (5,0), cluster 1) in front of it, plus ground points on
+ * ring 1. Azimuth step 0.2 deg. */
+std::vector<FeatureInputPoint> scene()
+{
+	std::vector<FeatureInputPoint> pts;
+	for (int c = 0; c < 600; c++)
+	{
+		const double az = (-60 + 0.2 * c) * M_PI / 180;
+		const Eigen::Vector2d d(std::cos(az), std::sin(az));
+		double r = 8.0 / d.x();	 // wall
+		int cluster = 0;
+		// Ray-circle intersection with the stem.
+		const Eigen::Vector2d ctr(5, 0);
+		const double b = d.dot(ctr), q = b * b - (ctr.squaredNorm() - 0.04);
+		if (q >= 0 && b - std::sqrt(q) > 0)
+		{
+			r = b - std::sqrt(q);
+			cluster = 1;
+		}
+		FeatureInputPoint p;
+		p.xyz = Eigen::Vector3f(r * d.x(), r * d.y(), 0);
+		p.ring = 0;
+		p.column = c;
+		p.cluster = cluster;
+		pts.push_back(p);
+		FeatureInputPoint g;
+		g.xyz = Eigen::Vector3f(6 * d.x(), 6 * d.y(), -1.5f);
+		g.ring = 1;
+		g.column = c;
+		g.ground = true;
+		pts.push_back(g);
+	}
+	return pts;
+}
+}  // namespace
+
+TEST(Features, StemSilhouetteIsEdgeWallIsPlanar)
+{
+	const auto pts = scene();
+	FeatureOptions o;
+	o.sectors_per_ring = 1;
+	o.max_edges_per_sector = 10;
+	o.max_planar_per_sector = 50;
+	const auto f = extractFeatures(pts, o);
+	// Edges: the two silhouette points of the stem, never the wall (the
+	// wall points beside the stem are its occluded side).
+	ASSERT_EQ(f.edges.size(), 2u);
+	for (auto i : f.edges) EXPECT_EQ(pts[i].cluster, 1) << "edge at " << pts[i].xyz.transpose();
+	EXPECT_LT(pts[f.edges[0]].xyz.y() * pts[f.edges[1]].xyz.y(), 0) << "one on each side";
+	size_t wall_planar = 0, ground_planar = 0;
+	for (auto i : f.planar)
+	{
+		EXPECT_NE(pts[i].cluster, 1);
+		if (pts[i].ground) ground_planar++;
+		else wall_planar++;
+	}
+	EXPECT_EQ(wall_planar, 50u);
+	EXPECT_EQ(ground_planar, 150u);	 // 600 ground points / 4
+	// Wall points right next to the stem silhouette are smooth, because the
+	// window ignores the other cluster.
+	for (size_t i = 0; i < pts.size(); i++)
+		if (!pts[i].ground && pts[i].cluster == 0 && f.smoothness[i] >= 0)
+			EXPECT_LT(f.smoothness[i], 0.01f);
+}
+
+TEST(Features, WithoutClustersTheStemEdgeBleedsIntoTheWall)
+{
+	auto pts = scene();
+	for (auto& p : pts)
+		if (!p.ground) p.cluster = 0;  // one cluster: plain LOAM behaviour
+	const auto f = extractFeatures(pts);
+	float max_wall = 0;
+	for (size_t i = 0; i < pts.size(); i++)
+		if (!pts[i].ground && std::abs(pts[i].xyz.x() - 8) < 1e-3)
+			max_wall = std::max(max_wall, f.smoothness[i]);
+	EXPECT_GT(max_wall, 0.1f) << "wall points beside the stem look like edges";
+}
+
+TEST(Features, EmptyAndNoiseInputs)
+{
+	EXPECT_TRUE(extractFeatures({}).edges.empty());
+	std::vector<FeatureInputPoint> noise(20);
+	for (auto& p : noise) p.xyz = Eigen::Vector3f(NAN, 0, 0);
+	const auto f = extractFeatures(noise);
+	EXPECT_TRUE(f.edges.empty());
+	EXPECT_TRUE(f.planar.empty());
+}
