@@ -1,5 +1,7 @@
 // forest-slam: the mapping application. Thin: parses the command line and
 // hands over to libs/pipeline. Exit codes: 0 ok, 1 runtime error, 2 usage.
+#include "cmd_trees.h"
+
 #include <forest_slam/core/config.h>
 #include <forest_slam/core/log.h>
 #include <forest_slam/pipeline/mapping_config.h>
@@ -22,6 +24,7 @@ Usage:
                   [--poses TRAJ.tum] [--progress auto|bar|log]
                   [--log-level debug|info|warn|error|quiet]
   forest-slam config --dump --config FILE.ini
+  forest-slam trees --cloud FILE.{las,ply,pcd} --out DIR [--config FILE.ini]
   forest-slam --help | forest-slam <command> --help
 
 Commands:
@@ -32,6 +35,9 @@ Commands:
            (TUM) when the INI says [pipeline] pose_source=trajectory.
   config   Print the effective configuration (every key, defaults filled
            in) after checking FILE.ini strictly: unknown keys are errors.
+  trees    Detect stems and measure DBH on a cloud from any scanner (TLS,
+           other SLAM systems) and write DIR/trees.csv; options from the
+           [trees] section of FILE.ini (doc/trees.md).
 
 Exit codes: 0 success, 1 runtime error (bad data, I/O), 2 usage error.
 See doc/user-guide.md for the INI keys and output formats.
@@ -146,7 +152,7 @@ int main(int argc, char** argv)
 	try
 	{
 		if (args.empty())
-			throw UsageError("missing command (map | config)");
+			throw UsageError("missing command (map | config | trees)");
 		const std::string cmd = args[0];
 		const std::vector<std::string> rest(args.begin() + 1, args.end());
 		if (cmd == "--help" || cmd == "-h" || cmd == "help")
@@ -156,7 +162,18 @@ int main(int argc, char** argv)
 		}
 		if (cmd == "map") return cmdMap(rest);
 		if (cmd == "config") return cmdConfig(rest);
-		throw UsageError("unknown command '" + cmd + "' (expected map | config)");
+		if (cmd == "trees")
+		{
+			try
+			{
+				return forest_slam::app::cmdTrees(rest, kUsage);
+			}
+			catch (const forest_slam::app::TreesUsageError& e)
+			{
+				throw UsageError(e.what());
+			}
+		}
+		throw UsageError("unknown command '" + cmd + "' (expected map | config | trees)");
 	}
 	catch (const UsageError& e)
 	{

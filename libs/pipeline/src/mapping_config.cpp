@@ -9,6 +9,7 @@ MappingConfig MappingConfig::load(core::TrackedConfig& cfg)
 	MappingConfig m;
 	m.pipeline.loadFromConfigFile(cfg, "pipeline");
 	m.forest_map.loadFromConfigFile(cfg, "forest_map");
+	m.trees.loadFromConfigFile(cfg, "trees");
 	cfg.checkNoUnknownKeys();
 	return m;
 }
@@ -24,6 +25,7 @@ std::string MappingConfig::dump() const
 	mrpt::config::CConfigFileMemory mem;
 	pipeline.saveToConfigFile(mem, "pipeline");
 	forest_map.saveToConfigFile(mem, "forest_map");
+	trees.saveToConfigFile(mem, "trees");
 	return mem.getContent();
 }
 

@@ -1,0 +1,63 @@
+#pragma once
+// Robust circle fit for stem cross-sections (paper §4.2 "fitting a circle";
+// issue 7: algebraic start, geometric least squares with a robust loss,
+// RANSAC against branch stubs, unbiased on partial arcs).
+#include <Eigen/Core>
+
+#include <cstdint>
+#include <vector>
+
+namespace forest_slam::trees
+{
+using Points2D =
+    std::vector<Eigen::Vector2d, Eigen::aligned_allocator<Eigen::Vector2d>>;
+
+struct Circle
+{
+	Eigen::Vector2d centre = Eigen::Vector2d::Zero();
+	double radius_m = 0;
+};
+
+struct CircleFitOptions
+{
+	double min_radius_m = 0.01;
+	double max_radius_m = 1.0;
+	int ransac_iterations = 300;
+	double ransac_inlier_m = 0.015;
+	uint32_t seed = 1;
+	double arc_bin_deg = 5;
+};
+
+struct CircleFitResult
+{
+	bool ok = false;
+	Circle circle;
+	double rmse_m = 0;            ///< geometric residuals of the inliers
+	double scale_m = 0;           ///< robust residual scale (1.4826 MAD)
+	size_t n_inliers = 0;         ///< |residual| <= 3 scale
+	double arc_coverage_deg = 0;  ///< angular bins holding an inlier
+};
+
+/** Kåsa's algebraic fit (linear least squares on x²+y²+Dx+Ey+F); cheap and
+ * always defined, but shrinks the radius on partial arcs: only a start.
+ * Returns false for fewer than 3 points or collinear points. */
+bool fitCircleKasa(const Points2D& p, Circle& out);
+
+/** Geometric (orthogonal distance) fit by Gauss–Newton/Levenberg–Marquardt
+ * with Tukey-biweight IRLS; the residual scale is re-estimated from the MAD
+ * each iteration, so inliers keep full, symmetric weight (no truncation bias)
+ * while stubs and leaves beyond ~4.7 σ get zero weight. */
+bool refineCircleGeometric(const Points2D& p, Circle& c,
+                           double min_scale_m = 0.002, int max_iterations = 50);
+
+/** The full robust fit: candidates from Kåsa on all points and from RANSAC on
+ * 3-point samples, each refined geometrically; the one with the lower robust
+ * cost wins. */
+CircleFitResult fitCircleRobust(const Points2D& p, const CircleFitOptions& o);
+
+/** Degrees of the circle seen by `p`: bins of `bin_deg` holding a point
+ * within `max_residual_m` of the circle. */
+double arcCoverageDeg(const Points2D& p, const Circle& c, double max_residual_m,
+                      double bin_deg);
+
+}  // namespace forest_slam::trees

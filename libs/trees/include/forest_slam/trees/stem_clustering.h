@@ -1,0 +1,23 @@
+#pragma once
+// Clustering of one horizontal slice (paper §4.2): hierarchical k-means with
+// branching factor k splits the points until every leaf holds <= σ points,
+// then a neighbourhood criterion joins leaves whose points come closer than
+// link_distance_m, so one stem split by k-means is one object again.
+#include <forest_slam/trees/circle_fit.h>
+
+#include <cstdint>
+#include <vector>
+
+namespace forest_slam::trees
+{
+/** Leaf index of each point of `p` (0..n_leaves-1); deterministic (seeded
+ * k-means++ initialisation). */
+std::vector<int> hierarchicalKMeans(const Points2D& p, int branching,
+                                    int leaf_points, uint32_t seed);
+
+/** Clusters (lists of point indices) after joining leaves linked by any pair
+ * of points within link_m; largest first. */
+std::vector<std::vector<size_t>> mergeLeavesByNeighbourhood(
+    const Points2D& p, const std::vector<int>& leaf, double link_m);
+
+}  // namespace forest_slam::trees

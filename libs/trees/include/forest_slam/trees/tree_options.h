@@ -1,0 +1,72 @@
+#pragma once
+// Every parameter of the tree layer (INI section [trees]); see doc/trees.md.
+#include <mrpt/config/CLoadableOptions.h>
+
+#include <cstdint>
+
+namespace forest_slam::trees
+{
+struct TreeOptions : public mrpt::config::CLoadableOptions
+{
+	// Terrain model of a standalone cloud (the SLAM pipeline supplies its own).
+	double dtm_cell_m = 1.0;   ///< grid cell of the lowest-point DTM
+	int dtm_window_cells = 2;  ///< median window half-size for the filter
+	double dtm_max_step_m =
+	    0.3;  ///< a cell this far above its neighbourhood is not ground
+
+	// Stacked slices above local ground (issue 7: stems confirmed by slices).
+	double slice_min_m = 0.5;
+	double slice_max_m = 3.0;
+	double slice_step_m = 0.25;
+	double slice_thickness_m = 0.2;
+
+	// Clustering of a slice: hierarchical k-means + neighbourhood merge (§4.2).
+	int kmeans_branching = 4;  ///< k of each k-means level
+	int kmeans_leaf_points =
+	    75;  ///< σ: stop splitting at this size (paper: 50–100)
+	double link_distance_m =
+	    0.08;  ///< leaves with points this close are one object
+	int min_slice_points = 12;  ///< smaller slice clusters are ignored
+
+	// A slice cluster is a stem section if its circle is plausible.
+	double min_dbh_m = 0.06;
+	double max_dbh_m = 1.2;
+	double section_max_rmse_m = 0.02;  ///< plus section_rmse_rel * radius
+	double section_rmse_rel = 0.08;
+	double section_min_arc_deg = 60;
+	double section_min_inlier_ratio = 0.6;
+
+	// Linking sections into stems: consistent centres, taper and lean.
+	double max_centre_step_m = 0.10;  ///< per metre of height, on top of lean
+	double max_radius_ratio = 1.4;    ///< between linked sections
+	int max_slice_gap = 2;            ///< missing slices allowed inside a stem
+	int min_slices = 4;               ///< slices confirming a stem
+	double max_lean_deg = 35;
+	double max_taper_m_per_m = 0.06;  ///< |d radius / d height|
+	double max_axis_rmse_m = 0.05;  ///< section centres around the fitted axis
+	int min_tree_points = 100;      ///< paper §4.2: ≥ 100 points per tree
+
+	// DBH (§4.2): band above local ground, SOR, robust circle fit.
+	double dbh_height_m = 1.3;
+	double dbh_band_half_m = 0.1;  ///< 1.2–1.4 m
+	int sor_k = 10;
+	double sor_omega = 0.4;
+	int min_dbh_points = 15;
+	int ransac_iterations = 300;
+	double ransac_inlier_m = 0.015;
+	uint32_t seed = 1;
+	double arc_bin_deg = 5;
+
+	// Quality flags (TreeQuality bits) and the top of the tree.
+	double good_arc_deg = 120;
+	double good_rmse_m = 0.02;
+	double top_search_radius_m = 1.0;
+	double top_max_gap_m = 1.5;
+
+	void loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
+	                        const std::string& section) override;
+	void saveToConfigFile(mrpt::config::CConfigFileBase& c,
+	                      const std::string& section) const override;
+};
+
+}  // namespace forest_slam::trees

@@ -1,0 +1,235 @@
+#include <forest_slam/trees/circle_fit.h>
+
+#include <Eigen/Dense>
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+
+namespace forest_slam::trees
+{
+namespace
+{
+double median(std::vector<double> v)
+{
+	if (v.empty()) return 0;
+	const auto mid = v.begin() + v.size() / 2;
+	std::nth_element(v.begin(), mid, v.end());
+	return *mid;
+}
+
+std::vector<double> residuals(const Points2D& p, const Circle& c)
+{
+	std::vector<double> r(p.size());
+	for (size_t i = 0; i < p.size(); i++)
+		r[i] = (p[i] - c.centre).norm() - c.radius_m;
+	return r;
+}
+
+double madScale(const std::vector<double>& r, double min_scale)
+{
+	std::vector<double> a(r.size());
+	for (size_t i = 0; i < r.size(); i++) a[i] = std::abs(r[i]);
+	return std::max(1.4826 * median(a), min_scale);
+}
+
+// Tukey biweight with the usual 95 % efficiency constant.
+constexpr double kTukeyC = 4.685;
+
+double tukeyRho(double r, double s)
+{
+	const double c = kTukeyC * s, u = r / c;
+	if (std::abs(u) >= 1) return c * c / 6;
+	const double t = 1 - u * u;
+	return c * c / 6 * (1 - t * t * t);
+}
+
+double tukeyWeight(double r, double s)
+{
+	const double u = r / (kTukeyC * s);
+	if (std::abs(u) >= 1) return 0;
+	const double t = 1 - u * u;
+	return t * t;
+}
+
+bool circleThrough3(const Eigen::Vector2d& a, const Eigen::Vector2d& b,
+                    const Eigen::Vector2d& c, Circle& out)
+{
+	const Eigen::Vector2d ab = b - a, ac = c - a;
+	const double d = 2 * (ab.x() * ac.y() - ab.y() * ac.x());
+	if (std::abs(d) < 1e-12) return false;
+	const double ab2 = ab.squaredNorm(), ac2 = ac.squaredNorm();
+	const Eigen::Vector2d u((ac.y() * ab2 - ab.y() * ac2) / d,
+	                        (ab.x() * ac2 - ac.x() * ab2) / d);
+	out.centre = a + u;
+	out.radius_m = u.norm();
+	return true;
+}
+}  // namespace
+
+bool fitCircleKasa(const Points2D& p, Circle& out)
+{
+	if (p.size() < 3) return false;
+	Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+	for (const auto& q : p) mean += q;
+	mean /= double(p.size());
+	// Centred coordinates keep the normal equations well conditioned.
+	Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
+	Eigen::Vector3d b = Eigen::Vector3d::Zero();
+	for (const auto& q : p)
+	{
+		const Eigen::Vector2d d = q - mean;
+		const Eigen::Vector3d row(d.x(), d.y(), 1.0);
+		A += row * row.transpose();
+		b -= row * d.squaredNorm();
+	}
+	const Eigen::Vector3d s = A.colPivHouseholderQr().solve(b);
+	if (!s.allFinite()) return false;
+	const Eigen::Vector2d c(-s.x() / 2, -s.y() / 2);
+	const double r2 = c.squaredNorm() - s.z();
+	if (!(r2 > 0) || !std::isfinite(r2)) return false;
+	out.centre = mean + c;
+	out.radius_m = std::sqrt(r2);
+	return true;
+}
+
+bool refineCircleGeometric(const Points2D& p, Circle& c, double min_scale_m,
+                           int max_iterations)
+{
+	if (p.size() < 3) return false;
+	Eigen::Vector3d x(c.centre.x(), c.centre.y(), c.radius_m);
+	double lambda = 1e-3;
+	for (int it = 0; it < max_iterations; it++)
+	{
+		const Circle cur{{x[0], x[1]}, x[2]};
+		const auto r = residuals(p, cur);
+		const double s = madScale(r, min_scale_m);
+		double cost = 0;
+		Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
+		Eigen::Vector3d g = Eigen::Vector3d::Zero();
+		for (size_t i = 0; i < p.size(); i++)
+		{
+			cost += tukeyRho(r[i], s);
+			const double w = tukeyWeight(r[i], s);
+			if (w == 0) continue;
+			const Eigen::Vector2d d = p[i] - cur.centre;
+			const double n = std::max(d.norm(), 1e-12);
+			const Eigen::Vector3d J(-d.x() / n, -d.y() / n, -1.0);
+			H += w * J * J.transpose();
+			g += w * J * r[i];
+		}
+		// Levenberg–Marquardt step on the IRLS quadratic model (scale fixed).
+		bool improved = false;
+		for (int tries = 0; tries < 10 && !improved; tries++)
+		{
+			Eigen::Matrix3d Hd = H;
+			Hd.diagonal() *= (1 + lambda);
+			const Eigen::Vector3d step = Hd.ldlt().solve(-g);
+			if (!step.allFinite()) return false;
+			const Eigen::Vector3d xn = x + step;
+			const Circle nc{{xn[0], xn[1]}, std::abs(xn[2])};
+			double ncost = 0;
+			for (const auto& q : p)
+				ncost += tukeyRho((q - nc.centre).norm() - nc.radius_m, s);
+			if (ncost <= cost)
+			{
+				const double dx = step.norm();
+				x = xn;
+				x[2] = std::abs(x[2]);
+				lambda = std::max(lambda / 10, 1e-9);
+				improved = true;
+				if (dx < 1e-9) it = max_iterations;
+			}
+			else
+				lambda *= 10;
+		}
+		if (!improved) break;
+	}
+	c = Circle{{x[0], x[1]}, x[2]};
+	return x.allFinite() && x[2] > 0;
+}
+
+double arcCoverageDeg(const Points2D& p, const Circle& c, double max_residual_m,
+                      double bin_deg)
+{
+	const int nb = std::max(1, int(std::lround(360.0 / bin_deg)));
+	std::vector<char> seen(nb, 0);
+	for (const auto& q : p)
+	{
+		const Eigen::Vector2d d = q - c.centre;
+		if (std::abs(d.norm() - c.radius_m) > max_residual_m) continue;
+		double a = std::atan2(d.y(), d.x()) * 180 / M_PI;
+		if (a < 0) a += 360;
+		seen[std::min(nb - 1, int(a / (360.0 / nb)))] = 1;
+	}
+	return std::count(seen.begin(), seen.end(), 1) * (360.0 / nb);
+}
+
+CircleFitResult fitCircleRobust(const Points2D& p, const CircleFitOptions& o)
+{
+	CircleFitResult res;
+	if (p.size() < 3) return res;
+	std::vector<Circle> starts;
+	Circle k;
+	if (fitCircleKasa(p, k)) starts.push_back(k);
+
+	// RANSAC: the 3-point circle with the most points within ransac_inlier_m,
+	// so that a branch stub or leaves cannot pull the start.
+	std::mt19937 rng(o.seed);
+	std::uniform_int_distribution<size_t> pick(0, p.size() - 1);
+	Circle best;
+	size_t best_n = 0;
+	for (int it = 0; it < o.ransac_iterations; it++)
+	{
+		const size_t a = pick(rng), b = pick(rng), c = pick(rng);
+		if (a == b || b == c || a == c) continue;
+		Circle cand;
+		if (!circleThrough3(p[a], p[b], p[c], cand)) continue;
+		if (cand.radius_m < o.min_radius_m || cand.radius_m > o.max_radius_m)
+			continue;
+		size_t n = 0;
+		for (const auto& q : p)
+			if (std::abs((q - cand.centre).norm() - cand.radius_m) <=
+			    o.ransac_inlier_m)
+				n++;
+		if (n > best_n) best_n = n, best = cand;
+	}
+	if (best_n >= 3)
+	{
+		// Plain geometric LS on the consensus set gives a good start.
+		Points2D in;
+		for (const auto& q : p)
+			if (std::abs((q - best.centre).norm() - best.radius_m) <=
+			    o.ransac_inlier_m)
+				in.push_back(q);
+		Circle c = best;
+		if (fitCircleKasa(in, c)) starts.push_back(c);
+		starts.push_back(best);
+	}
+
+	double best_cost = std::numeric_limits<double>::infinity();
+	for (auto c : starts)
+	{
+		if (!refineCircleGeometric(p, c)) continue;
+		if (c.radius_m < o.min_radius_m || c.radius_m > o.max_radius_m)
+			continue;
+		// Compare candidates under one common scale (the RANSAC tolerance).
+		const double s = o.ransac_inlier_m / 2;
+		double cost = 0;
+		for (const auto& q : p)
+			cost += tukeyRho((q - c.centre).norm() - c.radius_m, s);
+		if (cost < best_cost) best_cost = cost, res.circle = c, res.ok = true;
+	}
+	if (!res.ok) return res;
+	const auto r = residuals(p, res.circle);
+	res.scale_m = madScale(r, 1e-6);
+	double ss = 0;
+	for (double e : r)
+		if (std::abs(e) <= 3 * res.scale_m) ss += e * e, res.n_inliers++;
+	res.rmse_m = res.n_inliers ? std::sqrt(ss / res.n_inliers) : 0;
+	res.arc_coverage_deg =
+	    arcCoverageDeg(p, res.circle, 3 * res.scale_m, o.arc_bin_deg);
+	return res;
+}
+
+}  // namespace forest_slam::trees

@@ -1,0 +1,375 @@
+#include <forest_slam/trees/outlier_filter.h>
+#include <forest_slam/trees/stem_clustering.h>
+#include <forest_slam/trees/stem_detector.h>
+
+#include <Eigen/Dense>
+
+#include <algorithm>
+#include <cmath>
+
+namespace forest_slam::trees
+{
+namespace
+{
+CircleFitOptions fitOptions(const TreeOptions& o, double rmin, double rmax)
+{
+	CircleFitOptions f;
+	f.min_radius_m = rmin;
+	f.max_radius_m = rmax;
+	f.ransac_iterations = o.ransac_iterations;
+	f.ransac_inlier_m = o.ransac_inlier_m;
+	f.seed = o.seed;
+	f.arc_bin_deg = o.arc_bin_deg;
+	return f;
+}
+
+/** Least-squares line v = a + b·h; returns false if degenerate. */
+bool fitLine(const std::vector<double>& h, const std::vector<double>& v,
+             double& a, double& b)
+{
+	const size_t n = h.size();
+	if (n < 2) return false;
+	double mh = 0, mv = 0;
+	for (size_t i = 0; i < n; i++) mh += h[i], mv += v[i];
+	mh /= n, mv /= n;
+	double shh = 0, shv = 0;
+	for (size_t i = 0; i < n; i++)
+		shh += (h[i] - mh) * (h[i] - mh), shv += (h[i] - mh) * (v[i] - mv);
+	if (shh <= 0) return false;
+	b = shv / shh;
+	a = mv - b * mh;
+	return true;
+}
+
+struct Chain
+{
+	std::vector<StemSection> s;
+	// Axis x(h) = ax + bx h, y(h) = ay + by h; radius r(h) = ar + br h.
+	double ax = 0, bx = 0, ay = 0, by = 0, ar = 0, br = 0;
+	bool fitted = false;
+
+	void fit()
+	{
+		std::vector<double> h, x, y, r;
+		for (const auto& q : s)
+			h.push_back(q.height_m), x.push_back(q.centre.x()),
+			    y.push_back(q.centre.y()), r.push_back(q.radius_m);
+		fitted = fitLine(h, x, ax, bx) && fitLine(h, y, ay, by) &&
+		         fitLine(h, r, ar, br);
+		if (!fitted)
+		{
+			ax = x.back(), ay = y.back(), ar = r.back(), bx = by = br = 0;
+		}
+	}
+	Eigen::Vector2d at(double h) const { return {ax + bx * h, ay + by * h}; }
+	double radiusAt(double h) const { return ar + br * h; }
+	double medianRadius() const
+	{
+		std::vector<double> r;
+		for (const auto& q : s) r.push_back(q.radius_m);
+		std::nth_element(r.begin(), r.begin() + r.size() / 2, r.end());
+		return r[r.size() / 2];
+	}
+};
+}  // namespace
+
+std::vector<StemSection> findSliceSections(const Points2D& xy, int slice_index,
+                                           double height_m,
+                                           const TreeOptions& o,
+                                           size_t* n_clusters)
+{
+	std::vector<StemSection> out;
+	const auto leaf =
+	    hierarchicalKMeans(xy, o.kmeans_branching, o.kmeans_leaf_points,
+	                       o.seed + uint32_t(slice_index));
+	const auto clusters =
+	    mergeLeavesByNeighbourhood(xy, leaf, o.link_distance_m);
+	if (n_clusters) *n_clusters = clusters.size();
+	const double rmin = 0.5 * o.min_dbh_m * 0.7, rmax = 0.5 * o.max_dbh_m * 1.2;
+	for (const auto& c : clusters)
+	{
+		if (c.size() < size_t(o.min_slice_points)) continue;
+		Eigen::Vector2d lo = xy[c[0]], hi = xy[c[0]];
+		Points2D pts;
+		pts.reserve(c.size());
+		for (size_t i : c)
+			pts.push_back(xy[i]), lo = lo.cwiseMin(xy[i]),
+			                      hi = hi.cwiseMax(xy[i]);
+		// Walls and hedges: wider than any stem we accept.
+		if ((hi - lo).maxCoeff() > 1.5 * o.max_dbh_m) continue;
+		const auto f = fitCircleRobust(pts, fitOptions(o, rmin, rmax));
+		if (!f.ok) continue;
+		const double r = f.circle.radius_m;
+		if (r < 0.5 * o.min_dbh_m * 0.8 || r > 0.5 * o.max_dbh_m) continue;
+		if (f.rmse_m > o.section_max_rmse_m + o.section_rmse_rel * r) continue;
+		if (f.arc_coverage_deg < o.section_min_arc_deg) continue;
+		if (double(f.n_inliers) <
+		    o.section_min_inlier_ratio * double(pts.size()))
+			continue;
+		StemSection s;
+		s.slice = slice_index;
+		s.height_m = height_m;
+		s.centre = f.circle.centre;
+		s.radius_m = r;
+		s.rmse_m = f.rmse_m;
+		s.arc_deg = f.arc_coverage_deg;
+		s.n_points = f.n_inliers;
+		out.push_back(s);
+	}
+	return out;
+}
+
+std::vector<DetectedTree> detectTrees(const std::vector<Eigen::Vector3d>& pts,
+                                      const TerrainModel& terrain,
+                                      const TreeOptions& o,
+                                      TreeDetectionStats* stats)
+{
+	TreeDetectionStats st;
+	std::vector<double> hag(pts.size());
+	for (size_t i = 0; i < pts.size(); i++)
+		hag[i] = terrain.heightAboveGround(pts[i]);
+
+	// 2. Stem sections in every slice.
+	const int n_slices =
+	    int(std::floor((o.slice_max_m - o.slice_min_m) / o.slice_step_m +
+	                   1e-9)) +
+	    1;
+	std::vector<std::vector<StemSection>> by_slice(n_slices);
+	{
+		std::vector<Points2D> slice_xy(n_slices);
+		const double half = 0.5 * o.slice_thickness_m;
+		for (size_t i = 0; i < pts.size(); i++)
+		{
+			const double u = (hag[i] - o.slice_min_m) / o.slice_step_m;
+			const int s = int(std::lround(u));
+			if (s < 0 || s >= n_slices) continue;
+			if (std::abs(hag[i] - (o.slice_min_m + s * o.slice_step_m)) > half)
+				continue;
+			slice_xy[s].emplace_back(pts[i].x(), pts[i].y());
+		}
+		for (int s = 0; s < n_slices; s++)
+		{
+			size_t nc = 0;
+			by_slice[s] = findSliceSections(
+			    slice_xy[s], s, o.slice_min_m + s * o.slice_step_m, o, &nc);
+			st.slice_clusters += nc;
+			st.sections += by_slice[s].size();
+		}
+		st.slices = size_t(n_slices);
+	}
+
+	// 3. Link sections upwards into chains.
+	const double tan_lean = std::tan(o.max_lean_deg * M_PI / 180);
+	std::vector<Chain> chains;
+	for (int s = 0; s < n_slices; s++)
+	{
+		std::vector<char> taken(chains.size(), 0);
+		for (const auto& sec : by_slice[s])
+		{
+			int best = -1;
+			double best_d = 1e9;
+			for (size_t c = 0; c < chains.size(); c++)
+			{
+				if (taken[c]) continue;
+				const auto& last = chains[c].s.back();
+				const int gap = s - last.slice - 1;
+				if (gap < 0 || gap > o.max_slice_gap) continue;
+				const double dh = sec.height_m - last.height_m;
+				const double ratio = sec.radius_m / last.radius_m;
+				if (ratio > o.max_radius_ratio ||
+				    ratio < 1 / o.max_radius_ratio)
+					continue;
+				double d, tol;
+				if (chains[c].s.size() >= 2)
+				{
+					d = (chains[c].at(sec.height_m) - sec.centre).norm();
+					tol = o.max_centre_step_m * std::max(dh, 0.5);
+				}
+				else
+				{
+					d = (last.centre - sec.centre).norm();
+					tol =
+					    o.max_centre_step_m * std::max(dh, 0.5) + tan_lean * dh;
+				}
+				if (d <= tol && d < best_d) best_d = d, best = int(c);
+			}
+			if (best >= 0)
+			{
+				chains[best].s.push_back(sec);
+				chains[best].fit();
+				taken[best] = 1;
+			}
+			else
+			{
+				chains.emplace_back();
+				chains.back().s.push_back(sec);
+				chains.back().fit();
+				taken.push_back(1);
+			}
+		}
+	}
+	st.chains = chains.size();
+
+	// Validate chains: enough slices, plausible lean, taper and straightness.
+	std::vector<Chain> stems;
+	for (auto& c : chains)
+	{
+		if (int(c.s.size()) < o.min_slices)
+		{
+			st.rejected_short++;
+			continue;
+		}
+		c.fit();
+		double ss = 0;
+		for (const auto& q : c.s)
+			ss += (c.at(q.height_m) - q.centre).squaredNorm();
+		const double axis_rmse = std::sqrt(ss / c.s.size());
+		const double lean = std::atan(std::hypot(c.bx, c.by));
+		if (!c.fitted || lean > o.max_lean_deg * M_PI / 180 ||
+		    std::abs(c.br) > o.max_taper_m_per_m ||
+		    axis_rmse > o.max_axis_rmse_m)
+		{
+			st.rejected_shape++;
+			continue;
+		}
+		stems.push_back(c);
+	}
+	// Duplicates (two chains on one stem, e.g. split by a gap): keep the
+	// better-confirmed one.
+	std::sort(stems.begin(), stems.end(),
+	          [](const Chain& a, const Chain& b)
+	          { return a.s.size() > b.s.size(); });
+	std::vector<Chain> unique;
+	for (const auto& c : stems)
+	{
+		bool dup = false;
+		for (const auto& u : unique)
+			if ((u.at(o.dbh_height_m) - c.at(o.dbh_height_m)).norm() <
+			    std::max(u.medianRadius(), c.medianRadius()))
+				dup = true;
+		if (dup)
+			st.rejected_duplicate++;
+		else
+			unique.push_back(c);
+	}
+
+	// 4. DBH, points, height per stem.
+	std::vector<DetectedTree> trees;
+	double z_max = -1e300;
+	for (const auto& p : pts) z_max = std::max(z_max, p.z());
+	for (const auto& c : unique)
+	{
+		const double r_est = c.medianRadius();
+		const Eigen::Vector3d axis =
+		    Eigen::Vector3d(c.bx, c.by, 1.0).normalized();
+		const Eigen::Vector2d xy0 = c.at(o.dbh_height_m);
+		const Eigen::Vector3d p0(
+		    xy0.x(), xy0.y(),
+		    terrain.heightAt(xy0.x(), xy0.y()) + o.dbh_height_m);
+		Eigen::Vector3d e1 = axis.cross(Eigen::Vector3d::UnitY()).normalized();
+		const Eigen::Vector3d e2 = axis.cross(e1).normalized();
+		e1 = e2.cross(axis).normalized();
+
+		Points2D band;
+		size_t n_points = 0;
+		std::vector<double> column_h;
+		const double lo_h = o.slice_min_m - 0.5 * o.slice_thickness_m;
+		const double hi_h = o.slice_max_m + 0.5 * o.slice_thickness_m;
+		for (size_t i = 0; i < pts.size(); i++)
+		{
+			const double h = hag[i];
+			if (h < lo_h) continue;
+			const Eigen::Vector2d axis_xy = c.at(std::min(h, hi_h));
+			const double dist = (pts[i].head<2>() - axis_xy).norm();
+			if (h <= hi_h && dist <= c.radiusAt(h) + 0.05) n_points++;
+			if (h > hi_h && dist <= o.top_search_radius_m)
+				column_h.push_back(h);
+			if (std::abs(h - o.dbh_height_m) <= o.dbh_band_half_m &&
+			    dist <= 1.6 * r_est + 0.1)
+			{
+				const Eigen::Vector3d d = pts[i] - p0;
+				band.emplace_back(d.dot(e1), d.dot(e2));
+			}
+		}
+		if (n_points < size_t(o.min_tree_points))
+		{
+			st.rejected_points++;
+			continue;
+		}
+		DetectedTree t;
+		t.axis = axis;
+		t.lean_deg = std::acos(std::clamp(axis.z(), -1.0, 1.0)) * 180 / M_PI;
+		t.sections = c.s;
+		auto& rec = t.record;
+		rec.n_points = uint32_t(n_points);
+		rec.n_slices = uint16_t(c.s.size());
+
+		Points2D kept;
+		for (size_t i : statisticalOutlierFilter(band, o.sor_k, o.sor_omega))
+			kept.push_back(band[i]);
+		const auto f =
+		    kept.size() >= size_t(o.min_dbh_points)
+		        ? fitCircleRobust(
+		              kept, fitOptions(
+		                        o, 0.5 * r_est,
+		                        std::min(1.5 * r_est, 0.5 * o.max_dbh_m * 1.2)))
+		        : CircleFitResult{};
+		if (f.ok)
+		{
+			const Eigen::Vector3d centre =
+			    p0 + f.circle.centre.x() * e1 + f.circle.centre.y() * e2;
+			rec.x = centre.x();
+			rec.y = centre.y();
+			rec.dbh_m = 2 * f.circle.radius_m;
+			rec.fit_rmse_m = f.rmse_m;
+			rec.arc_coverage_deg = f.arc_coverage_deg;
+			if (f.arc_coverage_deg < o.good_arc_deg) rec.quality |= kPartialArc;
+			if (f.rmse_m > o.good_rmse_m) rec.quality |= kHighRmse;
+		}
+		else
+		{
+			rec.x = xy0.x();
+			rec.y = xy0.y();
+			rec.dbh_m = 2 * c.radiusAt(o.dbh_height_m);
+			rec.quality |= kDbhFromSlices;
+			double rm = 0, am = 0;
+			for (const auto& q : c.s)
+				rm = std::max(rm, q.rmse_m), am = std::max(am, q.arc_deg);
+			rec.fit_rmse_m = rm;
+			rec.arc_coverage_deg = am;
+		}
+		rec.z_ground = terrain.heightAt(rec.x, rec.y);
+		// Top: walk up the column above the slices until a vertical gap.
+		std::sort(column_h.begin(), column_h.end());
+		double top = hi_h;
+		for (double h : column_h)
+		{
+			if (h - top > o.top_max_gap_m) break;
+			top = h;
+		}
+		if (top - hi_h < 1.0)
+			rec.quality |= kTopNotSeen;
+		else
+			rec.height_m = top;
+		trees.push_back(std::move(t));
+	}
+	std::sort(trees.begin(), trees.end(),
+	          [](const DetectedTree& a, const DetectedTree& b)
+	          {
+		          return a.record.x != b.record.x ? a.record.x < b.record.x
+		                                          : a.record.y < b.record.y;
+	          });
+	for (size_t i = 0; i < trees.size(); i++)
+		trees[i].record.id = uint32_t(i + 1);
+	if (stats) *stats = st;
+	return trees;
+}
+
+std::vector<map::TreeRecord> toRecords(const std::vector<DetectedTree>& trees)
+{
+	std::vector<map::TreeRecord> r;
+	for (const auto& t : trees) r.push_back(t.record);
+	return r;
+}
+
+}  // namespace forest_slam::trees
