@@ -1,0 +1,65 @@
+#include <forest_slam/odometry/kdtree.h>
+
+#include <nanoflann.hpp>
+
+namespace forest_slam::odometry
+{
+namespace
+{
+struct CloudAdaptor
+{
+	const std::vector<Eigen::Vector3f>* pts;
+	size_t kdtree_get_point_count() const { return pts->size(); }
+	float kdtree_get_pt(size_t i, size_t dim) const { return (*pts)[i][dim]; }
+	template <class BBOX>
+	bool kdtree_get_bbox(BBOX&) const
+	{
+		return false;
+	}
+};
+using Index = nanoflann::KDTreeSingleIndexAdaptor<
+	nanoflann::L2_Simple_Adaptor<float, CloudAdaptor>, CloudAdaptor, 3, uint32_t>;
+}  // namespace
+
+struct KdTree::Impl
+{
+	CloudAdaptor adaptor;
+	std::unique_ptr<Index> index;
+};
+
+KdTree::KdTree() : impl_(std::make_unique<Impl>()) {}
+KdTree::~KdTree() = default;
+KdTree::KdTree(KdTree&&) noexcept = default;
+KdTree& KdTree::operator=(KdTree&&) noexcept = default;
+
+void KdTree::build(const std::vector<Eigen::Vector3f>& pts)
+{
+	pts_.clear();
+	pts_.reserve(pts.size());
+	for (const auto& p : pts)
+		if (p.allFinite()) pts_.push_back(p);
+	impl_->adaptor.pts = &pts_;
+	impl_->index = std::make_unique<Index>(
+		3, impl_->adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));
+	if (!pts_.empty()) impl_->index->buildIndex();
+}
+
+size_t KdTree::knn(const Eigen::Vector3f& q, size_t k, std::vector<uint32_t>& idx,
+				   std::vector<float>& d2) const
+{
+	if (pts_.empty() || k == 0)
+	{
+		idx.clear();
+		d2.clear();
+		return 0;
+	}
+	k = std::min(k, pts_.size());
+	idx.resize(k);
+	d2.resize(k);
+	const size_t n = impl_->index->knnSearch(q.data(), k, idx.data(), d2.data());
+	idx.resize(n);
+	d2.resize(n);
+	return n;
+}
+
+}  // namespace forest_slam::odometry
