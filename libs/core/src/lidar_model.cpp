@@ -60,6 +60,37 @@ LidarModel makeOs1_64()
 	return m;
 }
 
+LidarModel makeVlp32c()
+{
+	LidarModel m;
+	m.name = "VLP32C";
+	// VLP-32C datasheet elevations [deg] by laser id (firing order), the
+	// order of the raw packets and of the ROS driver's calibration file.
+	const double el_deg[32] = {-25,	   -1,	   -1.667, -15.639, -11.31, 0,	   -0.667, -8.843,
+							   -7.254, 0.333,  -0.333, -6.148,	-5.333, 1.333, 0.667,  -4,
+							   -4.667, 1.667,  1,	   -3.667,	-3.333, 3.333, 2.333,  -2.667,
+							   -3,	   7,	   4.667,  -2.333,	-2,		15,	   10.333, -1.333};
+	for (double e : el_deg) m.elevation_rad.push_back(e * kDeg);
+	m.azimuth_step_rad = 0.2 * kDeg;
+	m.min_range_m = 0.5;
+	m.max_range_m = 200.0;
+	m.range_noise_m = 0.03;
+	return m;
+}
+
+LidarModel makePandarXt32()
+{
+	LidarModel m;
+	m.name = "PandarXT32";
+	// Hesai PandarXT-32: +15 .. -16 deg in 1 deg steps, channel 0 highest.
+	for (int id = 0; id < 32; id++) m.elevation_rad.push_back((15.0 - id) * kDeg);
+	m.azimuth_step_rad = 0.18 * kDeg;
+	m.min_range_m = 0.05;
+	m.max_range_m = 120.0;
+	m.range_noise_m = 0.01;
+	return m;
+}
+
 std::string canonical(std::string s)
 {
 	std::string out;
@@ -68,13 +99,16 @@ std::string canonical(std::string s)
 			out += static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
 	if (out == "HDL32E") out = "HDL32";
 	if (out == "VLP16PUCK" || out == "VLP16HIRES") out = "VLP16";
+	if (out == "VLP32" || out == "ULTRAPUCK") out = "VLP32C";
+	if (out == "XT32" || out == "PANDARXT") out = "PANDARXT32";
 	return out;
 }
 
 const std::vector<LidarModel>& models()
 {
 	static const std::vector<LidarModel> all = {makeVlp16(), makeHdl32(),
-												makeOs1_64()};
+												makeOs1_64(), makeVlp32c(),
+												makePandarXt32()};
 	return all;
 }
 }  // namespace
