@@ -71,8 +71,13 @@ PcapReport convertPcap(const std::string& pcap_path, const std::string& rawlog_p
 	cfg.write(sec, "pos_packets_min_period", std::to_string(opts.gps_period_s));
 	mrpt::hwdrivers::CVelodyneScanner scanner;
 	scanner.loadConfig(cfg, sec);
-	if (!opts.calibration_file.empty())
-		scanner.setCalibration(toMrpt(loadVelodyneCalibration(opts.calibration_file)));
+	// Set model and calibration explicitly: the INI "model" key alone left
+	// MRPT 2.5.8 with its VLP-16 calibration for an HDL-32 capture.
+	scanner.setModelName(opts.model == "HDL32" ? mrpt::hwdrivers::CVelodyneScanner::HDL32
+											   : mrpt::hwdrivers::CVelodyneScanner::VLP16);
+	scanner.setCalibration(toMrpt(opts.calibration_file.empty()
+									  ? defaultVelodyneCalibration(opts.model)
+									  : loadVelodyneCalibration(opts.calibration_file)));
 	scanner.setPCAPVerbosity(false);
 	scanner.enableVerbose(false);
 	try

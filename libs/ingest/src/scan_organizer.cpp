@@ -178,7 +178,7 @@ void ScanOrganizer::organize(const std::vector<CloudPoint>& pts, int64_t stamp_n
 				"point " + std::to_string(i) + " has ring " +
 				std::to_string(pts[i].ring) + " but lidar model " + model_->name +
 				" has " + std::to_string(rings) + " rings");
-	if (ring_order_ == RingOrder::Auto) resolveRingOrder(pts);
+	if (ring_order_ == RingOrder::Auto && !pts.empty()) resolveRingOrder(pts);
 
 	OrganizeStats st;
 	st.points_in = pts.size();
@@ -339,12 +339,22 @@ void ScanOrganizer::organize(const std::vector<CloudPoint>& pts, int64_t stamp_n
 			st.out_of_range++;
 			continue;
 		}
-		const int c = static_cast<int>(col[k]);
+		int c = static_cast<int>(col[k]);
 		const int row = row_of_ring_[p.ring];
 		if (out.rangeImage(row, c) != 0)
 		{
-			st.collisions++;
-			continue;
+			// Lasers fire at slightly different azimuths within a column;
+			// with jitter two returns of one ring can round to the same
+			// column. The neighbour on the return's side is then the better
+			// home, if free.
+			const double resid = (u[k] - a) / step - c;
+			const int c2 = c + (resid >= 0 ? 1 : -1);
+			if (c2 < 0 || c2 >= n || out.rangeImage(row, c2) != 0)
+			{
+				st.collisions++;
+				continue;
+			}
+			c = c2;
 		}
 		out.rangeImage(row, c) = static_cast<uint16_t>(raw);
 		out.intensityImage(row, c) =

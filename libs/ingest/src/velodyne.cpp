@@ -364,6 +364,7 @@ void decodeVelodynePackets(const std::vector<const uint8_t*>& packets,
 				p.laser_id = static_cast<uint16_t>(laser);
 				p.azimuth_cdeg = az_c;
 				p.block = static_cast<uint8_t>(b);
+				p.return_index = static_cast<uint8_t>(k);
 				p.packet = static_cast<uint32_t>(pi);
 				p.t_s = t_us * 1e-6;
 				out.push_back(p);

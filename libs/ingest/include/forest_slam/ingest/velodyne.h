@@ -90,6 +90,7 @@ struct VelodynePoint
 	uint16_t laser_id = 0;
 	uint16_t azimuth_cdeg = 0;	///< Velodyne azimuth, 0.01 deg, clockwise
 	uint8_t block = 0;	///< data block within its packet (0..11)
+	uint8_t return_index = 0;  ///< position within the block (0..31)
 	uint32_t packet = 0;  ///< packet index within the scan
 	double t_s = 0;	 ///< after the first firing of the first packet
 };
