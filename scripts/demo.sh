@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # `make demo`: the main job on a built-in demo. Today: simulate a small forest
-# (forest-sim, ini/sim-tiny.ini), map it with forest-slam using the simulator's
-# ground-truth poses (the odometry stage has not landed yet), then score the
-# trajectory with forest-eval. Grows with the pipeline.
+# (forest-sim, ini/sim-tiny.ini), map it with forest-slam (lidar odometry,
+# ini/vlp16-handheld.ini), then score the trajectory against the simulator's
+# ground truth with forest-eval. Grows with the pipeline.
 set -euo pipefail
 BUILD=${1:-build}
 OUT=${2:-$BUILD/demo}
@@ -12,11 +12,9 @@ mkdir -p "$OUT"
 if [ -x "$BIN/forest-sim" ]; then
   echo "== 1/3 forest-sim: simulating a small forest (ini/sim-tiny.ini, seed 1)"
   "$BIN/forest-sim" --config ini/sim-tiny.ini --seed 1 --out "$OUT/sim"
-  # Start from the shipped handheld config, switch the pose source.
-  sed 's/^pose_source = static/pose_source = trajectory/' ini/vlp16-handheld.ini > "$OUT/demo-map.ini"
-  echo "== 2/3 forest-slam map (poses: ground truth, deskew on)"
-  "$BIN/forest-slam" map --config "$OUT/demo-map.ini" --rawlog "$OUT/sim/run.rawlog" \
-      --poses "$OUT/sim/gt_trajectory.tum" --out "$OUT/map" --progress log
+  echo "== 2/3 forest-slam map (lidar odometry, ini/vlp16-handheld.ini)"
+  "$BIN/forest-slam" map --config ini/vlp16-handheld.ini --rawlog "$OUT/sim/run.rawlog" \
+      --out "$OUT/map" --progress log
   if [ -x "$BIN/forest-eval" ]; then
     echo "== 3/3 forest-eval traj (estimate vs ground truth)"
     "$BIN/forest-eval" traj --gt "$OUT/sim/gt_trajectory.tum" --est "$OUT/map/trajectory.tum" \

@@ -117,7 +117,11 @@ TEST(Registration, RealScanPairMatchesReference)
 	splitByShape(tgt_pts, te, tp);
 	odometry::FeatureTarget tgt;
 	tgt.build(te, tp);
-	odometry::RegistrationOptions ro;  // defaults, as odometry uses them
+	// Scan-to-scan on 0.2 m voxels: neighbourhoods as tight as the cloud
+	// allows (the map default is wider because map voxels are coarser).
+	odometry::RegistrationOptions ro;
+	ro.max_neighbourhood_m = 0.5;
+	ro.edge_knn = 8;
 	const auto r = odometry::registerFeatures(tgt, se, sp, Eigen::Isometry3d::Identity(), ro);
 	const Eigen::Matrix4d ref = readMatrix(dir + "relative.txt");
 	// We estimate T with T * (first scan) ~ second scan; relative.txt turns

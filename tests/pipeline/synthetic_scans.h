@@ -1,6 +1,6 @@
 #pragma once
-// Synthetic VLP-16 scans of a simple world (flat ground z=-1.5 and walls
-// x=+-wall_x) seen from a sensor moving along +x at constant speed, each
+// Synthetic VLP-16 scans of a simple world (flat ground z=-1.5, walls
+// x=+-wall_x and a few vertical poles) seen from a sensor moving along +x at constant speed, each
 // column fired at its own time: enough to test deskew and the pipeline
 // without the simulator.
 #include <forest_slam/core/lidar_model.h>
@@ -11,6 +11,7 @@
 
 #include <cmath>
 #include <limits>
+#include <vector>
 
 namespace forest_slam::test_support
 {
@@ -22,6 +23,8 @@ struct MovingSensorWorld
 	double t0_s = 1000.0;
 	double period_s = 0.1;
 	int columns = 900;
+	double pole_radius_m = 0.15;
+	std::vector<Eigen::Vector2d> poles = {{5, 4}, {-6, -5}, {8, -6}, {-3, 6}, {2, -4}};
 
 	Eigen::Vector3d positionAt(double t) const
 	{
@@ -65,6 +68,19 @@ struct MovingSensorWorld
 					const Eigen::Vector3d hit = o + tw * d;
 					if (tw > 0 && std::abs(hit.y()) < 8 && hit.z() > ground_z)
 						best = tw;
+				}
+				// Vertical poles (stems): they constrain the motion along
+				// the walls, which walls and ground alone leave free.
+				for (const auto& pole : poles)
+				{
+					const Eigen::Vector2d o2(o.x() - pole.x(), o.y() - pole.y());
+					const Eigen::Vector2d d2(d.x(), d.y());
+					const double a = d2.squaredNorm(), b = o2.dot(d2),
+								 cc = o2.squaredNorm() - pole_radius_m * pole_radius_m;
+					const double disc = b * b - a * cc;
+					if (a < 1e-12 || disc < 0) continue;
+					const double tp = (-b - std::sqrt(disc)) / a;
+					if (tp > 0 && tp < best && o.z() + tp * d.z() > ground_z) best = tp;
 				}
 				if (d.z() < -1e-6)
 				{

@@ -16,15 +16,20 @@ void RegistrationOptions::loadFromConfigFile(
 	FS_LOAD(c, s, max_correspondence_m);
 	FS_LOAD(c, s, min_correspondence_m);
 	FS_LOAD(c, s, knn);
+	FS_LOAD(c, s, edge_knn);
+	FS_LOAD(c, s, max_neighbourhood_m);
 	FS_LOAD(c, s, huber_m);
 	FS_LOAD(c, s, plane_flatness);
 	FS_LOAD(c, s, line_ratio);
+	FS_LOAD(c, s, prior_translation_sigma_m);
+	FS_LOAD(c, s, prior_rotation_sigma_deg);
 	FS_LOAD(c, s, converged_translation_m);
 	FS_LOAD(c, s, converged_rotation_rad);
 	const std::string where = core::configOrigin(c) + ": [" + s + "] ";
 	if (outer_iterations < 1 || lm_iterations < 1)
 		throw core::ConfigError(where + "iteration counts must be >= 1");
-	if (knn < 3) throw core::ConfigError(where + "knn must be >= 3");
+	if (knn < 3 || edge_knn < 2)
+		throw core::ConfigError(where + "knn must be >= 3 and edge_knn >= 2");
 	if (!(min_correspondence_m > 0) || !(max_correspondence_m >= min_correspondence_m) ||
 		!(huber_m > 0))
 		throw core::ConfigError(
@@ -39,9 +44,13 @@ void RegistrationOptions::saveToConfigFile(
 	c.write(s, "max_correspondence_m", max_correspondence_m);
 	c.write(s, "min_correspondence_m", min_correspondence_m);
 	c.write(s, "knn", knn);
+	c.write(s, "edge_knn", edge_knn);
+	c.write(s, "max_neighbourhood_m", max_neighbourhood_m);
 	c.write(s, "huber_m", huber_m);
 	c.write(s, "plane_flatness", plane_flatness);
 	c.write(s, "line_ratio", line_ratio);
+	c.write(s, "prior_translation_sigma_m", prior_translation_sigma_m);
+	c.write(s, "prior_rotation_sigma_deg", prior_rotation_sigma_deg);
 	c.write(s, "converged_translation_m", converged_translation_m);
 	c.write(s, "converged_rotation_rad", converged_rotation_rad);
 }
@@ -80,6 +89,27 @@ struct PointToLine
 	}
 };
 
+/** Pose prior: (t - t0)/sigma_t and 2 vec(q0^-1 q)/sigma_r. */
+struct PosePrior
+{
+	Eigen::Quaterniond q0;
+	Eigen::Vector3d t0;
+	double inv_sigma_t, inv_sigma_r;
+	template <typename T>
+	bool operator()(const T* q, const T* t, T* r) const
+	{
+		const Eigen::Map<const Eigen::Quaternion<T>> Q(q);
+		const Eigen::Quaternion<T> d = q0.conjugate().cast<T>() * Q;
+		const T sign = d.w() < T(0) ? T(-1) : T(1);
+		for (int i = 0; i < 3; i++)
+		{
+			r[i] = (t[i] - T(t0[i])) * T(inv_sigma_t);
+			r[3 + i] = T(2) * sign * d.vec()[i] * T(inv_sigma_r);
+		}
+		return true;
+	}
+};
+
 struct LocalFit
 {
 	Eigen::Vector3d mean;
@@ -88,11 +118,11 @@ struct LocalFit
 };
 
 bool fitNeighbourhood(const KdTree& tree, const Eigen::Vector3f& q, int k,
-					  double max_d, std::vector<uint32_t>& idx,
+					  double gate, double extent, std::vector<uint32_t>& idx,
 					  std::vector<float>& d2, LocalFit& fit)
 {
 	if (tree.knn(q, k, idx, d2) < static_cast<size_t>(k)) return false;
-	if (d2.back() > max_d * max_d) return false;
+	if (d2.front() > gate * gate || d2.back() > extent * extent) return false;
 	fit.mean.setZero();
 	for (auto i : idx) fit.mean += tree.points()[i].cast<double>();
 	fit.mean /= idx.size();
@@ -112,7 +142,8 @@ bool fitNeighbourhood(const KdTree& tree, const Eigen::Vector3f& q, int k,
 RegistrationResult registerFeatures(
 	const FeatureTarget& target, const std::vector<Eigen::Vector3f>& src_edges,
 	const std::vector<Eigen::Vector3f>& src_planar,
-	const Eigen::Isometry3d& initial, const RegistrationOptions& o)
+	const Eigen::Isometry3d& initial, const RegistrationOptions& o,
+	const Eigen::Isometry3d* prior)
 {
 	RegistrationResult res;
 	Eigen::Quaterniond q(initial.linear());
@@ -145,7 +176,7 @@ RegistrationResult registerFeatures(
 		for (const auto& p : src_planar)
 		{
 			const Eigen::Vector3f x = T * p;
-			if (!fitNeighbourhood(target.planar, x, o.knn, gate, idx, d2, fit))
+			if (!fitNeighbourhood(target.planar, x, o.knn, gate, o.max_neighbourhood_m, idx, d2, fit))
 				continue;
 			if (fit.evals[0] > o.plane_flatness * fit.evals[1]) continue;
 			const Eigen::Vector3d n = fit.evecs.col(0);
@@ -161,7 +192,7 @@ RegistrationResult registerFeatures(
 		for (const auto& p : src_edges)
 		{
 			const Eigen::Vector3f x = T * p;
-			if (!fitNeighbourhood(target.edges, x, o.knn, gate, idx, d2, fit))
+			if (!fitNeighbourhood(target.edges, x, o.edge_knn, gate, o.max_neighbourhood_m, idx, d2, fit))
 				continue;
 			if (fit.evals[2] < o.line_ratio * fit.evals[1]) continue;
 			const Eigen::Vector3d dir = fit.evecs.col(2);
@@ -179,6 +210,13 @@ RegistrationResult registerFeatures(
 			}
 			ne++;
 		}
+		if (prior && o.prior_translation_sigma_m > 0 && o.prior_rotation_sigma_deg > 0)
+			problem.AddResidualBlock(
+				new ceres::AutoDiffCostFunction<PosePrior, 6, 4, 3>(new PosePrior{
+					Eigen::Quaterniond(prior->linear()).normalized(), prior->translation(),
+					1.0 / o.prior_translation_sigma_m,
+					1.0 / (o.prior_rotation_sigma_deg * M_PI / 180)}),
+				nullptr, qa, ta);
 		res.edge_matches = ne;
 		res.planar_matches = np;
 		if (ne + np < 6) break;	 // not enough constraints: keep the guess

@@ -10,6 +10,11 @@ MappingConfig MappingConfig::load(core::TrackedConfig& cfg)
 	m.pipeline.loadFromConfigFile(cfg, "pipeline");
 	m.forest_map.loadFromConfigFile(cfg, "forest_map");
 	m.trees.loadFromConfigFile(cfg, "trees");
+	m.odometry.odometry.loadFromConfigFile(cfg, "odometry");
+	m.odometry.registration.loadFromConfigFile(cfg, "registration");
+	m.odometry.ground.loadFromConfigFile(cfg, "ground");
+	m.odometry.cluster.loadFromConfigFile(cfg, "cluster");
+	m.odometry.features.loadFromConfigFile(cfg, "features");
 	cfg.checkNoUnknownKeys();
 	return m;
 }
@@ -26,6 +31,11 @@ std::string MappingConfig::dump() const
 	pipeline.saveToConfigFile(mem, "pipeline");
 	forest_map.saveToConfigFile(mem, "forest_map");
 	trees.saveToConfigFile(mem, "trees");
+	odometry.odometry.saveToConfigFile(mem, "odometry");
+	odometry.registration.saveToConfigFile(mem, "registration");
+	odometry.ground.saveToConfigFile(mem, "ground");
+	odometry.cluster.saveToConfigFile(mem, "cluster");
+	odometry.features.saveToConfigFile(mem, "features");
 	return mem.getContent();
 }
 

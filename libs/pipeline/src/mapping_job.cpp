@@ -9,6 +9,7 @@
 #include <mrpt/io/CFileGZOutputStream.h>
 #include <mrpt/serialization/CArchive.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <csignal>
@@ -58,6 +59,33 @@ std::string jsonEscape(const std::string& s)
 		o += c;
 	}
 	return o;
+}
+/** {"ground": {"median":..,"p95":..,"max":..}, ...} over the scans. */
+std::string stageTimesJson(const std::vector<odometry::ScanTiming>& t)
+{
+	using T = odometry::ScanTiming;
+	const std::pair<const char*, double T::*> stages[] = {
+		{"deskew", &T::deskew_ms},	 {"ground", &T::ground_ms},
+		{"cluster", &T::cluster_ms}, {"features", &T::features_ms},
+		{"register", &T::register_ms}, {"insert", &T::insert_ms}};
+	std::ostringstream os;
+	os << "{";
+	bool first = true;
+	for (const auto& [name, field] : stages)
+	{
+		std::vector<double> v;
+		for (const auto& x : t) v.push_back(x.*field);
+		std::sort(v.begin(), v.end());
+		const auto at = [&](double q) {
+			return v.empty() ? 0.0 : v[std::min(v.size() - 1, static_cast<size_t>(q * v.size()))];
+		};
+		os << (first ? "" : ", ") << "\"" << name << "\": {\"median\": " << at(0.5)
+		   << ", \"p95\": " << at(0.95) << ", \"max\": " << (v.empty() ? 0.0 : v.back())
+		   << "}";
+		first = false;
+	}
+	os << "}";
+	return os.str();
 }
 }  // namespace
 
@@ -157,6 +185,8 @@ std::vector<std::string> writeOutputs(
 		   << "  \"scans_out_of_order\": " << s.scans_out_of_order << ",\n"
 		   << "  \"scans_outside_poses\": " << s.scans_outside_poses << ",\n"
 		   << "  \"scans_unreadable\": " << s.scans_unreadable << ",\n"
+		   << "  \"scans_degenerate\": " << s.scans_degenerate << ",\n"
+		   << "  \"scans_unregistered\": " << s.scans_unregistered << ",\n"
 		   << "  \"imu\": " << s.imu << ",\n"
 		   << "  \"gnss\": " << s.gnss << ",\n"
 		   << "  \"other\": " << s.other << ",\n"
@@ -166,6 +196,7 @@ std::vector<std::string> writeOutputs(
 		   << "  \"scans_per_second\": "
 		   << (r.wall_seconds > 0 ? s.scans_mapped / r.wall_seconds : 0) << ",\n"
 		   << "  \"real_time_factor\": " << rt << ",\n"
+		   << "  \"stage_ms\": " << stageTimesJson(s.stage_ms) << ",\n"
 		   << "  \"map_edge_voxels\": " << p.forestMap().edgePointCount() << ",\n"
 		   << "  \"map_planar_voxels\": " << p.forestMap().planarPointCount() << ",\n"
 		   << "  \"map_submaps\": " << p.forestMap().submaps().size() << ",\n"

@@ -8,6 +8,7 @@
 #include <mrpt/obs/CObservationVelodyneScan.h>
 #include <mrpt/system/datetime.h>
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
@@ -128,6 +129,40 @@ Eigen::Isometry3d MappingPipeline::staticLidarPose(
 	return *static_pose_;
 }
 
+void MappingPipeline::mapWithOdometry(
+	const mrpt::obs::CObservationRotatingScan& scan, core::ScanPoints& pts)
+{
+	const auto& po = cfg_.pipeline;
+	auto& v = pts.points;
+	v.erase(std::remove_if(v.begin(), v.end(),
+						   [&](const core::ScanPoint& p) {
+							   return !(p.range_m >= po.min_range_m &&
+										p.range_m <= po.max_range_m) ||
+									  !std::isfinite(p.x) || !std::isfinite(p.y) ||
+									  !std::isfinite(p.z);
+						   }),
+			v.end());
+	if (v.empty())
+	{
+		stats_.scans_empty++;
+		core::logOnce(core::LogLevel::Warn, "scan-empty",
+					  "lidar scan at t=" + std::to_string(pts.stamp_s) +
+						  " s has no valid return: skipped");
+		return;
+	}
+	if (!odometry_)
+	{
+		odometry_ = std::make_unique<odometry::LidarOdometry>(cfg_.odometry, map_);
+		odometry_->setInitialPose(staticLidarPose(scan.sensorPose));
+	}
+	const auto step = odometry_->processScan(pts);
+	trajectory_.push_back(step.pose);
+	stats_.scans_mapped++;
+	stats_.scans_degenerate += step.degenerate;
+	stats_.scans_unregistered += (!step.registered && odometry_->scansProcessed() > 1);
+	stats_.stage_ms.push_back(step.timing);
+}
+
 bool MappingPipeline::lidarPoseAt(double t_s, Eigen::Isometry3d& out) const
 {
 	if (cfg_.pipeline.poseSource() == PoseSource::Static)
@@ -173,6 +208,11 @@ void MappingPipeline::processScan(const mrpt::obs::CObservationRotatingScan& sca
 		return;
 	}
 	stats_.points_in += pts.points.size();
+	if (cfg_.pipeline.poseSource() == PoseSource::Odometry)
+	{
+		mapWithOdometry(scan, pts);
+		return;
+	}
 
 	if (cfg_.pipeline.poseSource() == PoseSource::Static)
 		staticLidarPose(scan.sensorPose);

@@ -15,9 +15,11 @@ void PipelineOptions::loadFromConfigFile(
 	FS_LOAD(c, s, max_range_m);
 	FS_LOAD(c, s, deskew);
 	const std::string where = core::configOrigin(c) + ": [" + s + "] ";
-	if (pose_source != "static" && pose_source != "trajectory")
+	if (pose_source != "static" && pose_source != "trajectory" &&
+		pose_source != "odometry")
 		throw core::ConfigError(
-			where + "pose_source: expected 'static' or 'trajectory', got '" +
+			where +
+			"pose_source: expected 'odometry', 'static' or 'trajectory', got '" +
 			pose_source + "'");
 	if (lidar_label.empty())
 		throw core::ConfigError(where + "lidar_label must not be empty");
@@ -41,8 +43,9 @@ void PipelineOptions::saveToConfigFile(
 
 PoseSource PipelineOptions::poseSource() const
 {
-	return pose_source == "trajectory" ? PoseSource::Trajectory
-									   : PoseSource::Static;
+	if (pose_source == "trajectory") return PoseSource::Trajectory;
+	if (pose_source == "odometry") return PoseSource::Odometry;
+	return PoseSource::Static;
 }
 
 }  // namespace forest_slam::pipeline

@@ -21,13 +21,25 @@ struct RegistrationOptions : public mrpt::config::CLoadableOptions
 	 * a poor guess in, near matches make the final estimate precise). */
 	double max_correspondence_m = 1.0;
 	double min_correspondence_m = 0.3;
-	int knn = 8;  ///< neighbours to fit a line / plane
+	int knn = 8;  ///< neighbours to fit a plane
+	/** Neighbours to fit a line: few, so the two silhouettes of one stem
+	 * (a stem diameter apart) are not blended into one line. */
+	int edge_knn = 4;
+	/** The k neighbours must lie within this of the query (the nearest one
+	 * within the correspondence gate): voxelized maps are sparse. */
+	double max_neighbourhood_m = 1.0;
 	double huber_m = 0.1;  ///< robust loss scale
 	/** Plane fit accepted if its smallest eigenvalue is below this fraction
 	 * of the largest; line fit if the largest dominates the middle one by
 	 * line_ratio. */
 	double plane_flatness = 0.1;
 	double line_ratio = 3.0;
+	/** Motion-model prior (when the caller gives one): in directions the
+	 * geometry leaves unconstrained (a corridor, an open field) the pose
+	 * stays at the prediction instead of drifting; where the scan constrains
+	 * the pose, hundreds of residuals outweigh it. 0 disables. */
+	double prior_translation_sigma_m = 0.1;
+	double prior_rotation_sigma_deg = 1.0;
 	/** Converged when the update is below these. */
 	double converged_translation_m = 1e-4;
 	double converged_rotation_rad = 1e-5;
@@ -63,10 +75,12 @@ struct RegistrationResult
 		Eigen::Matrix<double, 6, 1>::Zero();
 };
 
-/** Estimates T such that T * source ≈ target, starting from `initial`. */
+/** Estimates T such that T * source ≈ target, starting from `initial`;
+ * with `prior`, adds the motion-model prior factor centred on it. */
 RegistrationResult registerFeatures(
 	const FeatureTarget& target, const std::vector<Eigen::Vector3f>& src_edges,
 	const std::vector<Eigen::Vector3f>& src_planar,
-	const Eigen::Isometry3d& initial, const RegistrationOptions& opts);
+	const Eigen::Isometry3d& initial, const RegistrationOptions& opts,
+	const Eigen::Isometry3d* prior = nullptr);
 
 }  // namespace forest_slam::odometry

@@ -4,6 +4,7 @@
 #include <forest_slam/core/config.h>
 #include <forest_slam/map/forest_map.h>
 #include <forest_slam/pipeline/pipeline_options.h>
+#include <forest_slam/odometry/lidar_odometry.h>
 #include <forest_slam/trees/tree_options.h>
 
 #include <ostream>
@@ -15,6 +16,8 @@ struct MappingConfig
 {
 	PipelineOptions pipeline;		  ///< [pipeline]
 	map::ForestMapOptions forest_map;  ///< [forest_map]
+	/** [odometry] [registration] [ground] [cluster] [features] */
+	odometry::OdometryConfig odometry;
 	trees::TreeOptions trees;		   ///< [trees]
 
 	/** Loads all sections and rejects unknown keys; throws core::ConfigError

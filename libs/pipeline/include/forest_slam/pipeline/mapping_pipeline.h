@@ -9,6 +9,7 @@
 #include <mrpt/obs/CObservation.h>
 
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <mrpt/poses/CPose3D.h>
 
@@ -28,7 +29,11 @@ struct RunStats
 	uint64_t scans_out_of_order = 0;  ///< time not after the previous scan
 	uint64_t scans_outside_poses = 0;  ///< no pose for their time
 	uint64_t scans_unreadable = 0;	///< unknown model / malformed image
+	uint64_t scans_degenerate = 0;	///< odometry: weak geometry
+	uint64_t scans_unregistered = 0;  ///< odometry: motion model carried the pose
 	uint64_t imu = 0, gnss = 0, other = 0;
+	/** Odometry per-stage milliseconds, one entry per scan. */
+	std::vector<odometry::ScanTiming> stage_ms;
 	uint64_t points_in = 0;
 	double first_stamp_s = 0, last_stamp_s = 0;
 	double dataSeconds() const
@@ -68,10 +73,14 @@ class MappingPipeline
 	Eigen::Vector3d gravity_sum_vehicle_ = Eigen::Vector3d::Zero();
 	uint64_t gravity_samples_ = 0;
 	std::optional<Eigen::Isometry3d> static_pose_;
+	std::unique_ptr<odometry::LidarOdometry> odometry_;
 
 	void accumulateGravity(const mrpt::obs::CObservation& imu);
-	/** Lidar pose in the map frame for a sensor that does not move. */
+	/** First lidar pose in the map frame: at the origin, levelled with the
+	 * IMU gravity seen before the first scan, heading along x. */
 	Eigen::Isometry3d staticLidarPose(const mrpt::poses::CPose3D& lidar_on_vehicle);
+	void mapWithOdometry(const mrpt::obs::CObservationRotatingScan& scan,
+						 core::ScanPoints& pts);
 
 	void processScan(const mrpt::obs::CObservationRotatingScan& scan);
 	/** Lidar pose in the map frame at absolute time t (--poses files hold

@@ -10,7 +10,8 @@ namespace forest_slam::pipeline
 enum class PoseSource
 {
 	Static,		///< the sensor did not move (tripod / TLS-like scanning)
-	Trajectory	///< poses interpolated from a TUM file (--poses)
+	Trajectory,	 ///< poses interpolated from a TUM file (--poses)
+	Odometry	///< lidar odometry and mapping (libs/odometry)
 };
 
 struct PipelineOptions : public mrpt::config::CLoadableOptions
@@ -18,8 +19,9 @@ struct PipelineOptions : public mrpt::config::CLoadableOptions
 	std::string lidar_label = "lidar";	///< sensorLabel of lidar scans
 	std::string imu_label = "imu";
 	std::string gnss_label = "gnss";
-	/** "static" or "trajectory" (needs `forest-slam map --poses FILE`). */
-	std::string pose_source = "static";
+	/** "odometry" (lidar odometry), "static" or "trajectory" (needs
+	 * `forest-slam map --poses FILE`). */
+	std::string pose_source = "odometry";
 	uint64_t max_scans = 0;	 ///< stop after this many scans (0 = all)
 	double min_range_m = 0.8;  ///< drop returns closer (operator, robot body)
 	double max_range_m = 80.0;
