@@ -21,7 +21,8 @@ const char* kUsage =
 
 Usage:
   forest-sim --config FILE.ini --out DIR [--seed N] [--bag DIR/run.bag]
-             [--progress auto|bar|log] [--log-level debug|info|warn|error|quiet]
+             [--threads N] [--progress auto|bar|log]
+             [--log-level debug|info|warn|error|quiet]
   forest-sim --config FILE.ini --dump-config [--seed N]
   forest-sim --help
 
@@ -35,7 +36,8 @@ Writes into DIR:
   scenario.ini       effective parameters + [ground_truth] (frames, counts)
 --bag also writes the run as a ROS1 bag (/velodyne_points, /imu/data,
 /gps/fix, /tf_static). The same config and seed give identical files.
---seed overrides [sim] seed. --dump-config prints the effective parameters.
+--seed overrides [sim] seed, --threads [sim] threads (the output does not
+depend on it). --dump-config prints the effective parameters.
 
 Exit codes: 0 success, 1 runtime error, 2 usage or configuration error.
 See doc/simulator.md for the scenarios, every INI key and the outputs.
@@ -50,7 +52,8 @@ std::map<std::string, std::string> parseOptions(
     const std::vector<std::string>& args)
 {
 	const std::set<std::string> valued = {
-	    "--config", "--out", "--seed", "--bag", "--progress", "--log-level"};
+	    "--config",  "--out",      "--seed",     "--bag",
+	    "--threads", "--progress", "--log-level"};
 	const std::set<std::string> flags = {"--help", "-h", "--dump-config"};
 	std::map<std::string, std::string> out;
 	for (size_t i = 0; i < args.size(); i++)
@@ -71,15 +74,15 @@ std::map<std::string, std::string> parseOptions(
 	return out;
 }
 
-uint64_t parseSeed(const std::string& s)
+uint64_t parseCount(const std::string& option, const std::string& s)
 {
 	try
 	{
-		return forest_slam::core::parseConfigValue<uint64_t>(s, "--seed");
+		return forest_slam::core::parseConfigValue<uint64_t>(s, option);
 	}
 	catch (const std::exception&)
 	{
-		throw UsageError("--seed expects a non-negative integer, got '" + s +
+		throw UsageError(option + " expects a non-negative integer, got '" + s +
 		                 "'");
 	}
 }
@@ -121,7 +124,16 @@ int main(int argc, char** argv)
 			             e.what());
 			return 2;
 		}
-		if (o.count("--seed")) opts.run.seed = parseSeed(o.at("--seed"));
+		if (o.count("--seed"))
+			opts.run.seed = parseCount("--seed", o.at("--seed"));
+		if (o.count("--threads"))
+		{
+			const uint64_t n = parseCount("--threads", o.at("--threads"));
+			if (n < 1 || n > 64)
+				throw UsageError("--threads expects 1..64, got '" +
+				                 o.at("--threads") + "'");
+			opts.run.threads = static_cast<int>(n);
+		}
 		if (o.count("--dump-config"))
 		{
 			std::cout << opts.toIni();

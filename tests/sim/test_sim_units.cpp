@@ -2,7 +2,9 @@
 // spline and its derivatives, ray/primitive intersections, terrain and grid
 // ray casting against brute force, and the planned motions.
 #include <forest_slam/core/config.h>
+#include <forest_slam/core/scan_points.h>
 #include <forest_slam/sim/body_trajectory.h>
+#include <forest_slam/sim/lidar_sim.h>
 #include <forest_slam/sim/motion_planner.h>
 #include <forest_slam/sim/options.h>
 #include <forest_slam/sim/random.h>
@@ -12,6 +14,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <mrpt/core/Clock.h>
 
 using namespace forest_slam;
 using namespace forest_slam::sim;
@@ -405,6 +408,82 @@ TEST(SimScenario, SeedDeterminesTheWorld)
 	const double t = a.body().startTime() + 17.3;
 	EXPECT_EQ(a.lidarPoseInMap(t).matrix(), b.lidarPoseInMap(t).matrix());
 	EXPECT_NE(a.lidarPoseInMap(t).matrix(), c.lidarPoseInMap(t).matrix());
+}
+
+TEST(SimLidar, AllModelsDecodeAndThreadsDoNotChangeTheScan)
+{
+	auto o = SimOptions::loadFile("ini/sim-tiny.ini");
+	const Scenario sc(o);
+	struct Case
+	{
+		const char* model;
+		size_t rows, cols;
+	};
+	for (const Case c : {Case{"VLP16", 16, 1800}, Case{"HDL32", 32, 2250},
+						 Case{"OS1-64", 64, 1024}})
+	{
+		SCOPED_TRACE(c.model);
+		LidarOptions lo = sc.options().lidar;
+		lo.model = c.model;
+		LidarSimulator one(sc.world(), sc.body(), lo, 99, 1);
+		LidarSimulator three(sc.world(), sc.body(), lo, 99, 3);
+		const auto a = one.scan(150), b = three.scan(150);
+		EXPECT_EQ(a->rowCount, c.rows);
+		EXPECT_EQ(a->columnCount, c.cols);
+		EXPECT_EQ(a->rangeImage, b->rangeImage);
+		EXPECT_EQ(a->intensityImage, b->intensityImage);
+		EXPECT_EQ(a->rangeOtherLayers.at("gt_label"), b->rangeOtherLayers.at("gt_label"));
+		const auto pts = core::unpackRotatingScan(*a);
+		EXPECT_GT(pts.points.size(), c.rows * c.cols / 3);
+		// Each return's range equals the distance of its point (decoding
+		// convention) and its time lies within the sweep.
+		for (size_t i = 0; i < pts.points.size(); i += 101)
+		{
+			const auto& p = pts.points[i];
+			EXPECT_NEAR(std::sqrt(p.x * p.x + p.y * p.y + p.z * p.z), p.range_m, 1e-3);
+			EXPECT_GE(p.t_s, 0.f);
+			EXPECT_LE(p.t_s, static_cast<float>(a->sweepDuration) + 1e-6f);
+		}
+		EXPECT_NEAR(mrpt::Clock::toDouble(a->timestamp), one.scanTime(150), 1e-6);
+	}
+	// Without the GT layers.
+	LidarOptions lo = sc.options().lidar;
+	lo.gt_layers = false;
+	EXPECT_TRUE(LidarSimulator(sc.world(), sc.body(), lo, 1, 2).scan(3)->rangeOtherLayers.empty());
+}
+
+TEST(SimLidar, ReturnsMatchTheWorldGeometry)
+{
+	// A scan cast from the GT pose, unpacked, re-cast point by point:
+	// every return lies on a surface of the world (noise off).
+	auto o = SimOptions::loadFile("ini/sim-tiny.ini");
+	o.run.noise = false;
+	const Scenario sc(o);
+	LidarSimulator lidar(sc.world(), sc.body(), sc.options().lidar, 5, 2);
+	const auto s = lidar.scan(200);
+	const auto pts = core::unpackRotatingScan(*s);
+	const Eigen::Isometry3d T_bl = sc.options().lidar.mount.toIsometry();
+	RayScratch scratch;
+	int n = 0;
+	const auto* label = pts.layer("gt_label");
+	ASSERT_NE(label, nullptr);
+	for (size_t i = 0; i < pts.points.size(); i += 37)
+	{
+		const auto& p = pts.points[i];
+		// Foliage and shrub returns depend on the ray's random free path.
+		if ((*label)[i] == kLabelCrown || (*label)[i] == kLabelShrub) continue;
+		const Eigen::Isometry3d T = sc.body().pose(lidar.scanTime(200) + p.t_s) * T_bl;
+		const Eigen::Vector3d dir = T.linear() * Eigen::Vector3d(p.x, p.y, p.z).normalized();
+		const Hit h = sc.world().raycast(T.translation(), dir, 0, 200, 12345, scratch);
+		// Solid returns must agree to the range quantisation (2 mm) and the
+		// float32 point precision; this re-cast may stop in foliage instead.
+		if (h.porous) continue;
+		ASSERT_TRUE(h.valid()) << "point " << i;
+		EXPECT_EQ(h.label, (*label)[i]) << "point " << i;
+		EXPECT_NEAR(h.t, p.range_m, 0.003) << "point " << i;
+		n++;
+	}
+	EXPECT_GT(n, 300);
 }
 
 TEST(SimMotion, RobotStopsTurnsInPlaceAndReturnsToStart)
