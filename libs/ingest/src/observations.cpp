@@ -3,13 +3,24 @@
 
 #include <mrpt/math/CQuaternion.h>
 #include <mrpt/obs/gnss_messages_ascii_nmea.h>
-#include <mrpt/obs/gnss_messages_novatel.h>
+#include <mrpt/obs/gnss_messages_topcon.h>
 
 #include <cmath>
+#include <cstring>
 
 namespace forest_slam::ingest
 {
 using namespace mrpt::obs;
+
+bool navSatCovariance(const CObservationGPS& obs, std::array<double, 9>& cov)
+{
+	if (!obs.hasMsgClass<gnss::Message_TOPCON_PZS>()) return false;
+	const auto& p = obs.getMsgByClass<gnss::Message_TOPCON_PZS>();
+	if (!p.hasPosCov) return false;
+	for (int i = 0; i < 3; i++)
+		for (int j = 0; j < 3; j++) cov[i * 3 + j] = p.pos_covariance(i, j);
+	return true;
+}
 
 void imuFromMsg(const ImuMsg& m, CObservationIMU& out)
 {
@@ -92,30 +103,27 @@ void gpsFromMsg(const NavSatFixMsg& m, CObservationGPS& out)
 	gga.fields.thereis_HDOP = false;
 	out.setMsg(gga);
 
-	gnss::Message_NV_OEM6_BESTPOS best;
-	best.fields.solution_stat = m.status >= 0 ? gnss::nv_oem6_solution_status::SOL_COMPUTED
-											  : gnss::nv_oem6_solution_status::INSUFFICIENT_OBS;
-	switch (m.status)
+	// The covariance rides in a TOPCON PZS message: the only GNSS message
+	// with a full position covariance that MRPT 2.5.8 serializes and reads
+	// back (its NovAtel INSCOVS and generic frames fail to deserialize).
+	// Its 4x4 matrix holds the ENU covariance in the upper-left 3x3.
+	gnss::Message_TOPCON_PZS pzs;
+	pzs.latitude_degrees = m.latitude_deg;
+	pzs.longitude_degrees = m.longitude_deg;
+	pzs.height_meters = m.altitude_m;
+	pzs.RTK_height_meters = m.altitude_m;
+	pzs.Fix = m.status >= 0 ? 1 : 0;
+	const auto& c = m.position_covariance;
+	pzs.hasPosCov = m.covariance_type != 0;
+	pzs.pos_covariance.setZero();
+	if (pzs.hasPosCov)
 	{
-		case 0: best.fields.position_type = gnss::nv_oem6_position_type::SINGLE; break;
-		case 1: best.fields.position_type = gnss::nv_oem6_position_type::WAAS; break;
-		case 2: best.fields.position_type = gnss::nv_oem6_position_type::PSRDIFF; break;
-		default: best.fields.position_type = gnss::nv_oem6_position_type::NONE;
+		for (int i = 0; i < 3; i++)
+			for (int j = 0; j < 3; j++)
+				pzs.pos_covariance(i, j) = static_cast<float>(c[i * 3 + j]);
+		pzs.PSigma = static_cast<float>(std::sqrt(std::max(0.0, c[0] + c[4] + c[8])));
 	}
-	best.fields.lat = m.latitude_deg;
-	best.fields.lon = m.longitude_deg;
-	best.fields.hgt = m.altitude_m;
-	const auto& c = m.position_covariance;	// ENU: x = east, y = north
-	if (m.covariance_type != 0)
-	{
-		best.fields.lat_sigma = static_cast<float>(std::sqrt(std::max(0.0, c[4])));
-		best.fields.lon_sigma = static_cast<float>(std::sqrt(std::max(0.0, c[0])));
-		best.fields.hgt_sigma = static_cast<float>(std::sqrt(std::max(0.0, c[8])));
-		gnss::Message_NV_OEM6_INSCOVS cov;
-		for (int i = 0; i < 9; i++) cov.fields.pos_cov[i] = c[i];
-		out.setMsg(cov);
-	}
-	out.setMsg(best);
+	out.setMsg(pzs);
 }
 
 }  // namespace forest_slam::ingest

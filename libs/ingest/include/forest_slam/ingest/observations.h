@@ -3,16 +3,20 @@
 // CObservationGPS.
 //
 // CObservationGPS in MRPT 2.5.8 has no covariance field, so a fix is stored
-// as three standard messages: NMEA GGA (position, fix quality, UTC time),
-// NovAtel BESTPOS (solution status, 1-sigma per axis) and, when the
-// covariance is known, NovAtel INSCOVS (full 3x3 ENU position covariance,
-// the same frame as NavSatFix's). The NavSatFix status maps one-to-one to
+// as two standard messages: NMEA GGA (position, fix quality, UTC time) and
+// TOPCON PZS (position and the full ENU position covariance, float, in the
+// upper-left 3x3 of its 4x4 matrix; NavSatFix's frame and units). PZS is
+// the only MRPT 2.5.8 GNSS message with a covariance that survives a rawlog
+// round trip (NovAtel INSCOVS and the generic frames fail to deserialize).
+// navSatCovariance() reads it back. The NavSatFix status maps one-to-one to
 // the GGA fix quality: -1 -> 0 (invalid), 0 -> 1 (GPS), 1 (SBAS) -> 2
 // (DGPS), 2 (GBAS) -> 4 (RTK); gpsStatusFromGga() inverts it.
 #include <forest_slam/ingest/messages.h>
 
 #include <mrpt/obs/CObservationGPS.h>
 #include <mrpt/obs/CObservationIMU.h>
+
+#include <array>
 
 namespace forest_slam::ingest
 {
@@ -22,6 +26,10 @@ namespace forest_slam::ingest
 void imuFromMsg(const ImuMsg& m, mrpt::obs::CObservationIMU& out);
 
 void gpsFromMsg(const NavSatFixMsg& m, mrpt::obs::CObservationGPS& out);
+
+/** The ENU position covariance [m^2, row-major, float precision] stored by
+ * gpsFromMsg(); false if the fix had none. */
+bool navSatCovariance(const mrpt::obs::CObservationGPS& obs, std::array<double, 9>& cov);
 
 uint8_t ggaQualityFromStatus(int8_t status);
 int8_t gpsStatusFromGga(uint8_t quality);
