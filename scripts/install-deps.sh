@@ -8,6 +8,7 @@ PACKAGES=(
   libmrpt-dev mrpt-apps
   libpcl-dev liboctomap-dev libceres-dev libnanoflann-dev libeigen3-dev
   librosbag-storage-dev libsensor-msgs-dev libroslz4-dev libsqlite3-dev
+  libtf2-msgs-dev libbz2-dev
   libgeographiclib-dev zlib1g-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libjsoncpp-dev
