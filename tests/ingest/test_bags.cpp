@@ -14,6 +14,7 @@
 #include <mrpt/obs/CObservationRotatingScan.h>
 #include <mrpt/obs/CObservationVelodyneScan.h>
 #include <mrpt/obs/gnss_messages_ascii_nmea.h>
+#include <mrpt/obs/gnss_messages_novatel.h>
 #include <rosbag/bag.h>
 #include <sensor_msgs/Imu.h>
 #include <sensor_msgs/NavSatFix.h>
@@ -177,6 +178,10 @@ void checkConverted(const std::string& rawlog, bool tf)
 	EXPECT_FLOAT_EQ(cov[1], 0.001f);
 	EXPECT_FLOAT_EQ(cov[4], 0.05f);
 	EXPECT_FLOAT_EQ(cov[8], 0.2f);
+	const auto& best = g.getMsgByClass<mrpt::obs::gnss::Message_NV_OEM6_BESTPOS>();
+	EXPECT_FLOAT_EQ(best.fields.lat_sigma, std::sqrt(0.05f));
+	EXPECT_FLOAT_EQ(best.fields.hgt_sigma, std::sqrt(0.2f));
+	EXPECT_EQ(best.fields.position_type, mrpt::obs::gnss::nv_oem6_position_type::NARROW_INT);
 	if (tf) expectPose(g.sensorPose, 0, 0, 1.5, 0);
 }
 

@@ -3,6 +3,7 @@
 
 #include <mrpt/math/CQuaternion.h>
 #include <mrpt/obs/gnss_messages_ascii_nmea.h>
+#include <mrpt/obs/gnss_messages_novatel.h>
 #include <mrpt/obs/gnss_messages_topcon.h>
 
 #include <cmath>
@@ -103,6 +104,36 @@ void gpsFromMsg(const NavSatFixMsg& m, CObservationGPS& out)
 	gga.fields.thereis_HDOP = false;
 	out.setMsg(gga);
 
+	// BESTPOS as forest-sim writes it: solution status and 1-sigma per axis.
+	const auto& c = m.position_covariance;	// ENU: x = east, y = north
+	gnss::Message_NV_OEM6_BESTPOS best;
+	{
+		// GPS week / ms of week (18 leap seconds since 2017).
+		const double gps_s = m.header.stamp_ns * 1e-9 - 315964800.0 + 18.0;
+		if (gps_s > 0)
+		{
+			best.fields.header.week = static_cast<uint16_t>(std::floor(gps_s / 604800.0));
+			best.fields.header.ms_in_week = static_cast<uint32_t>(
+				std::llround((gps_s - best.fields.header.week * 604800.0) * 1000.0));
+		}
+	}
+	best.fields.solution_stat = m.status >= 0 ? gnss::nv_oem6_solution_status::SOL_COMPUTED
+											  : gnss::nv_oem6_solution_status::INSUFFICIENT_OBS;
+	best.fields.position_type = m.status == 0	? gnss::nv_oem6_position_type::SINGLE
+								: m.status == 1 ? gnss::nv_oem6_position_type::PSRDIFF
+								: m.status == 2 ? gnss::nv_oem6_position_type::NARROW_INT
+												: gnss::nv_oem6_position_type::NONE;
+	best.fields.lat = m.latitude_deg;
+	best.fields.lon = m.longitude_deg;
+	best.fields.hgt = m.altitude_m;
+	if (m.covariance_type != 0)
+	{
+		best.fields.lat_sigma = static_cast<float>(std::sqrt(std::max(0.0, c[4])));
+		best.fields.lon_sigma = static_cast<float>(std::sqrt(std::max(0.0, c[0])));
+		best.fields.hgt_sigma = static_cast<float>(std::sqrt(std::max(0.0, c[8])));
+	}
+	out.setMsg(best);
+
 	// The covariance rides in a TOPCON PZS message: the only GNSS message
 	// with a full position covariance that MRPT 2.5.8 serializes and reads
 	// back (its NovAtel INSCOVS and generic frames fail to deserialize).
@@ -113,7 +144,6 @@ void gpsFromMsg(const NavSatFixMsg& m, CObservationGPS& out)
 	pzs.height_meters = m.altitude_m;
 	pzs.RTK_height_meters = m.altitude_m;
 	pzs.Fix = m.status >= 0 ? 1 : 0;
-	const auto& c = m.position_covariance;
 	pzs.hasPosCov = m.covariance_type != 0;
 	pzs.pos_covariance.setZero();
 	if (pzs.hasPosCov)

@@ -3,8 +3,9 @@
 // CObservationGPS.
 //
 // CObservationGPS in MRPT 2.5.8 has no covariance field, so a fix is stored
-// as two standard messages: NMEA GGA (position, fix quality, UTC time) and
-// TOPCON PZS (position and the full ENU position covariance, float, in the
+// as three standard messages: NMEA GGA (position, fix quality, UTC time),
+// NovAtel BESTPOS (solution status, 1-sigma east/north/up, as forest-sim
+// writes it) and TOPCON PZS (position and the full ENU position covariance, float, in the
 // upper-left 3x3 of its 4x4 matrix; NavSatFix's frame and units). PZS is
 // the only MRPT 2.5.8 GNSS message with a covariance that survives a rawlog
 // round trip (NovAtel INSCOVS and the generic frames fail to deserialize).
