@@ -10,24 +10,27 @@
 namespace
 {
 const char* kUsage =
-	"usage: bag2rawlog --bag IN --config INI --out OUT.rawlog [--quiet]\n"
-	"       bag2rawlog --bag IN --list\n"
-	"\n"
-	"Converts a ROS 1 bag (.bag) or a ROS 2 bag (folder with metadata.yaml and\n"
-	"sqlite3 .db3 files) into an MRPT rawlog: the lidar topic (PointCloud2 or\n"
-	"velodyne_msgs/VelodyneScan), sensor_msgs/Imu and sensor_msgs/NavSatFix,\n"
-	"with sensor poses from /tf_static or the INI. Topics, labels and\n"
-	"extrinsics come from the INI (ini/bag-*.ini; every key is commented).\n"
-	"\n"
-	"  --bag PATH      input bag (file or folder)\n"
-	"  --config INI    conversion settings\n"
-	"  --out PATH      output rawlog (gzip, written atomically)\n"
-	"  --list          print topics, types, message counts and rates, then exit\n"
-	"  --quiet         no progress bar, warnings and errors only\n"
-	"  --help          this text\n"
-	"\n"
-	"Exit codes: 0 ok, 1 runtime error (output keeps what was converted before\n"
-	"the problem), 2 usage or configuration error.\n";
+    "usage: bag2rawlog --bag IN --config INI --out OUT.rawlog [--quiet]\n"
+    "       bag2rawlog --bag IN --list\n"
+    "\n"
+    "Converts a ROS 1 bag (.bag) or a ROS 2 bag (folder with metadata.yaml "
+    "and\n"
+    "sqlite3 .db3 files) into an MRPT rawlog: the lidar topic (PointCloud2 or\n"
+    "velodyne_msgs/VelodyneScan), sensor_msgs/Imu and sensor_msgs/NavSatFix,\n"
+    "with sensor poses from /tf_static or the INI. Topics, labels and\n"
+    "extrinsics come from the INI (ini/bag-*.ini; every key is commented).\n"
+    "\n"
+    "  --bag PATH      input bag (file or folder)\n"
+    "  --config INI    conversion settings\n"
+    "  --out PATH      output rawlog (gzip, written atomically)\n"
+    "  --list          print topics, types, message counts and rates, then "
+    "exit\n"
+    "  --quiet         no progress bar, warnings and errors only\n"
+    "  --help          this text\n"
+    "\n"
+    "Exit codes: 0 ok, 1 runtime error (output keeps what was converted "
+    "before\n"
+    "the problem), 2 usage or configuration error.\n";
 
 int usageError(const std::string& msg)
 {
@@ -45,8 +48,10 @@ int main(int argc, char** argv)
 	for (size_t i = 0; i < args.size(); i++)
 	{
 		const std::string& a = args[i];
-		auto value = [&](std::string& dst) {
-			if (i + 1 >= args.size() || args[i + 1].rfind("--", 0) == 0) return false;
+		auto value = [&](std::string& dst)
+		{
+			if (i + 1 >= args.size() || args[i + 1].rfind("--", 0) == 0)
+				return false;
 			dst = args[++i];
 			return true;
 		};
@@ -55,12 +60,24 @@ int main(int argc, char** argv)
 			std::cout << kUsage;
 			return 0;
 		}
-		else if (a == "--bag") { if (!value(bag)) return usageError("--bag needs a path"); }
-		else if (a == "--config") { if (!value(config)) return usageError("--config needs a path"); }
-		else if (a == "--out") { if (!value(out)) return usageError("--out needs a path"); }
-		else if (a == "--list") list = true;
-		else if (a == "--quiet") quiet = true;
-		else return usageError("unknown argument '" + a + "'");
+		else if (a == "--bag")
+		{
+			if (!value(bag)) return usageError("--bag needs a path");
+		}
+		else if (a == "--config")
+		{
+			if (!value(config)) return usageError("--config needs a path");
+		}
+		else if (a == "--out")
+		{
+			if (!value(out)) return usageError("--out needs a path");
+		}
+		else if (a == "--list")
+			list = true;
+		else if (a == "--quiet")
+			quiet = true;
+		else
+			return usageError("unknown argument '" + a + "'");
 	}
 	if (bag.empty()) return usageError("--bag is required");
 	if (quiet) core::setLogLevel(core::LogLevel::Warn);
@@ -102,9 +119,9 @@ int main(int argc, char** argv)
 		if (!report.ok())
 		{
 			std::cerr << "bag2rawlog: " << report.error << "\n"
-					  << "bag2rawlog: '" << out << "' holds the "
-					  << report.observations_written
-					  << " observations converted before this point\n";
+			          << "bag2rawlog: '" << out << "' holds the "
+			          << report.observations_written
+			          << " observations converted before this point\n";
 			return 1;
 		}
 		std::cout << "wrote " << out << "\n";

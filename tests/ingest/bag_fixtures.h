@@ -42,20 +42,23 @@ inline mrpt::obs::CObservationRotatingScan scanAt(int k)
 		for (int c = 0; c < n; c++)
 		{
 			if (c > 0 && c < n - 1 && (r + c + k) % 4 == 0) continue;
-			s.rangeImage(r, c) = static_cast<uint16_t>(2000 + 7 * c + 100 * r + 13 * k);
+			s.rangeImage(r, c) =
+			    static_cast<uint16_t>(2000 + 7 * c + 100 * r + 13 * k);
 			s.intensityImage(r, c) = static_cast<uint8_t>(c % 200);
 		}
 	return s;
 }
 
 /** velodyne_pointcloud layout; ring numbered bottom-up like the driver. */
-inline sensor_msgs::PointCloud2 cloudMsg(const mrpt::obs::CObservationRotatingScan& s,
-								  bool drop_z = false)
+inline sensor_msgs::PointCloud2 cloudMsg(
+    const mrpt::obs::CObservationRotatingScan& s, bool drop_z = false)
 {
 	const auto sp = forest_slam::core::unpackRotatingScan(s);
-	const auto by_el = forest_slam::core::lidarModelByName("VLP16").rowsByElevation();
+	const auto by_el =
+	    forest_slam::core::lidarModelByName("VLP16").rowsByElevation();
 	std::vector<uint16_t> ring_of_row(16);
-	for (int i = 0; i < 16; i++) ring_of_row[by_el[i]] = static_cast<uint16_t>(i);
+	for (int i = 0; i < 16; i++)
+		ring_of_row[by_el[i]] = static_cast<uint16_t>(i);
 	sensor_msgs::PointCloud2 m;
 	m.header.stamp = ros::Time(sp.stamp_s);
 	m.header.frame_id = "velodyne";
@@ -115,8 +118,9 @@ inline sensor_msgs::NavSatFix fixMsg(int i)
 	return m;
 }
 
-inline geometry_msgs::TransformStamped tfMsg(const std::string& parent, const std::string& child,
-									  double x, double z, double yaw)
+inline geometry_msgs::TransformStamped tfMsg(const std::string& parent,
+                                             const std::string& child, double x,
+                                             double z, double yaw)
 {
 	geometry_msgs::TransformStamped t;
 	t.header.stamp = ros::Time(kT0);
@@ -133,7 +137,7 @@ struct BagSpec
 {
 	bool tf = true;
 	bool lz4 = false;
-	int bad_cloud = -1;	 ///< index of a cloud without its z field
+	int bad_cloud = -1;  ///< index of a cloud without its z field
 	uint32_t chunk_bytes = 768 * 1024;
 };
 
@@ -164,7 +168,7 @@ inline void writeRos1Bag(const std::string& path, const BagSpec& spec)
 		}
 		// The driver publishes a revolution when it is complete.
 		bag.write("/velodyne_points", ros::Time(kT0 + 0.1 * (k + 1)),
-				  cloudMsg(scanAt(k), k == spec.bad_cloud));
+		          cloudMsg(scanAt(k), k == spec.bad_cloud));
 	}
 	bag.close();
 }

@@ -1,8 +1,8 @@
 #pragma once
 // Shared helpers of the ingest tests: temp dirs, a PCD reader, nearest-point
 // statistics, a small CDR encoder (the ROS 2 side of the message tests).
-#include <nanoflann.hpp>
 #include <unistd.h>
+#include <nanoflann.hpp>
 
 #include <array>
 #include <cmath>
@@ -29,12 +29,15 @@ struct TempDir
 	explicit TempDir(const std::string& tag)
 	{
 		path = std::filesystem::temp_directory_path() /
-			   ("fs_ingest_" + tag + "_" + std::to_string(::getpid()));
+		       ("fs_ingest_" + tag + "_" + std::to_string(::getpid()));
 		std::filesystem::remove_all(path);
 		std::filesystem::create_directories(path);
 	}
 	~TempDir() { std::filesystem::remove_all(path); }
-	std::string operator/(const std::string& f) const { return (path / f).string(); }
+	std::string operator/(const std::string& f) const
+	{
+		return (path / f).string();
+	}
 };
 
 struct Pcd
@@ -141,7 +144,7 @@ struct Cloud
 inline double fractionWithin(const Cloud& ref, const Cloud& query, double tol_m)
 {
 	using Tree = nanoflann::KDTreeSingleIndexAdaptor<
-		nanoflann::L2_Simple_Adaptor<float, Cloud>, Cloud, 3>;
+	    nanoflann::L2_Simple_Adaptor<float, Cloud>, Cloud, 3>;
 	if (query.pts.empty() || ref.pts.empty()) return 0;
 	Tree tree(3, ref, nanoflann::KDTreeSingleIndexAdaptorParams(10));
 	tree.buildIndex();
@@ -191,7 +194,10 @@ class CdrWriter
 		time(sec, nsec);
 		str(frame);
 	}
-	void bytes(const uint8_t* p, size_t n) { buf_.insert(buf_.end(), p, p + n); }
+	void bytes(const uint8_t* p, size_t n)
+	{
+		buf_.insert(buf_.end(), p, p + n);
+	}
 	const std::vector<uint8_t>& data() const { return buf_; }
 
    private:

@@ -18,12 +18,15 @@ struct FieldSpec
 	uint8_t type;
 };
 
-size_t typeSize(uint8_t t) { return t <= 2 ? 1 : t <= 4 ? 2 : t <= 7 ? 4 : 8; }
+size_t typeSize(uint8_t t)
+{
+	return t <= 2 ? 1 : t <= 4 ? 2 : t <= 7 ? 4 : 8;
+}
 
 /** A cloud with the given fields packed in order; values[i][f] as double. */
 PointCloud2Msg makeCloud(const std::vector<FieldSpec>& spec,
-						 const std::vector<std::vector<double>>& values, int64_t stamp_ns,
-						 bool big_endian = false)
+                         const std::vector<std::vector<double>>& values,
+                         int64_t stamp_ns, bool big_endian = false)
 {
 	PointCloud2Msg m;
 	m.header.stamp_ns = stamp_ns;
@@ -33,7 +36,7 @@ PointCloud2Msg makeCloud(const std::vector<FieldSpec>& spec,
 		m.fields.push_back({f.name, off, f.type, 1});
 		off += static_cast<uint32_t>(typeSize(f.type));
 	}
-	m.point_step = off + 2;	// drivers pad: keep a gap to test offsets
+	m.point_step = off + 2;  // drivers pad: keep a gap to test offsets
 	m.height = 1;
 	m.width = static_cast<uint32_t>(values.size());
 	m.row_step = m.point_step * m.width;
@@ -48,12 +51,32 @@ PointCloud2Msg makeCloud(const std::vector<FieldSpec>& spec,
 			size_t n = typeSize(spec[j].type);
 			switch (spec[j].type)
 			{
-				case 2: b[0] = static_cast<uint8_t>(v); break;
-				case 4: { uint16_t x = static_cast<uint16_t>(v); std::memcpy(b, &x, 2); break; }
-				case 6: { uint32_t x = static_cast<uint32_t>(v); std::memcpy(b, &x, 4); break; }
-				case 7: { float x = static_cast<float>(v); std::memcpy(b, &x, 4); break; }
-				case 8: std::memcpy(b, &v, 8); break;
-				default: ADD_FAILURE() << "type not used in tests";
+				case 2:
+					b[0] = static_cast<uint8_t>(v);
+					break;
+				case 4:
+				{
+					uint16_t x = static_cast<uint16_t>(v);
+					std::memcpy(b, &x, 2);
+					break;
+				}
+				case 6:
+				{
+					uint32_t x = static_cast<uint32_t>(v);
+					std::memcpy(b, &x, 4);
+					break;
+				}
+				case 7:
+				{
+					float x = static_cast<float>(v);
+					std::memcpy(b, &x, 4);
+					break;
+				}
+				case 8:
+					std::memcpy(b, &v, 8);
+					break;
+				default:
+					ADD_FAILURE() << "type not used in tests";
 			}
 			if (big_endian) std::reverse(b, b + n);
 			std::memcpy(p, b, n);
@@ -65,8 +88,14 @@ constexpr int64_t kStamp = 1700000000500000000LL;
 
 TEST(IngestPointCloud2, VelodyneDriverLayout)
 {
-	const auto m = makeCloud({{"x", 7}, {"y", 7}, {"z", 7}, {"intensity", 7}, {"ring", 4}, {"time", 7}},
-							 {{1, 2, 3, 40, 5, 0.01}, {4, 5, 6, 50, 15, 0.0995}}, kStamp);
+	const auto m =
+	    makeCloud({{"x", 7},
+	               {"y", 7},
+	               {"z", 7},
+	               {"intensity", 7},
+	               {"ring", 4},
+	               {"time", 7}},
+	              {{1, 2, 3, 40, 5, 0.01}, {4, 5, 6, 50, 15, 0.0995}}, kStamp);
 	const auto L = analyzeCloudLayout(m, {});
 	EXPECT_TRUE(L.ring.present);
 	EXPECT_EQ(L.ring.name, "ring");
@@ -83,8 +112,14 @@ TEST(IngestPointCloud2, VelodyneDriverLayout)
 
 TEST(IngestPointCloud2, OusterLayoutUint8RingNanosecondTime)
 {
-	const auto m = makeCloud({{"x", 7}, {"y", 7}, {"z", 7}, {"t", 6}, {"reflectivity", 4}, {"ring", 2}},
-							 {{1, 0, 0, 0, 100, 0}, {0, 2, 0, 48828125, 200, 63}}, kStamp);
+	const auto m =
+	    makeCloud({{"x", 7},
+	               {"y", 7},
+	               {"z", 7},
+	               {"t", 6},
+	               {"reflectivity", 4},
+	               {"ring", 2}},
+	              {{1, 0, 0, 0, 100, 0}, {0, 2, 0, 48828125, 200, 63}}, kStamp);
 	const auto L = analyzeCloudLayout(m, {});
 	EXPECT_EQ(L.time.name, "t");
 	EXPECT_EQ(L.intensity.name, "reflectivity");
@@ -99,9 +134,15 @@ TEST(IngestPointCloud2, OusterLayoutUint8RingNanosecondTime)
 TEST(IngestPointCloud2, HesaiAbsoluteSecondsBecomeRelative)
 {
 	const double stamp_s = kStamp * 1e-9;
-	const auto m = makeCloud({{"x", 7}, {"y", 7}, {"z", 7}, {"intensity", 7}, {"timestamp", 8}, {"ring", 4}},
-							 {{1, 1, 1, 9, stamp_s + 0.001, 3}, {2, 2, 2, 9, stamp_s + 0.0625, 31}},
-							 kStamp);
+	const auto m = makeCloud(
+	    {{"x", 7},
+	     {"y", 7},
+	     {"z", 7},
+	     {"intensity", 7},
+	     {"timestamp", 8},
+	     {"ring", 4}},
+	    {{1, 1, 1, 9, stamp_s + 0.001, 3}, {2, 2, 2, 9, stamp_s + 0.0625, 31}},
+	    kStamp);
 	const auto L = analyzeCloudLayout(m, {});
 	std::vector<CloudPoint> pts;
 	extractCloudPoints(m, L, pts);
@@ -120,8 +161,9 @@ TEST(IngestPointCloud2, HesaiAbsoluteSecondsBecomeRelative)
 TEST(IngestPointCloud2, InvalidPointsAreDroppedAndCounted)
 {
 	const double nan = std::nan("");
-	const auto m = makeCloud({{"x", 7}, {"y", 7}, {"z", 7}},
-							 {{1, 2, 3}, {nan, 0, 0}, {0, 0, 0}, {4, 5, 6}}, kStamp);
+	const auto m =
+	    makeCloud({{"x", 7}, {"y", 7}, {"z", 7}},
+	              {{1, 2, 3}, {nan, 0, 0}, {0, 0, 0}, {4, 5, 6}}, kStamp);
 	const auto L = analyzeCloudLayout(m, {});
 	EXPECT_FALSE(L.ring.present);
 	EXPECT_FALSE(L.time.present);
@@ -132,8 +174,9 @@ TEST(IngestPointCloud2, InvalidPointsAreDroppedAndCounted)
 
 TEST(IngestPointCloud2, BigEndianClouds)
 {
-	const auto m = makeCloud({{"x", 7}, {"y", 7}, {"z", 7}, {"ring", 4}, {"time", 7}},
-							 {{1.5, -2.25, 3, 7, 0.05}}, kStamp, true);
+	const auto m =
+	    makeCloud({{"x", 7}, {"y", 7}, {"z", 7}, {"ring", 4}, {"time", 7}},
+	              {{1.5, -2.25, 3, 7, 0.05}}, kStamp, true);
 	const auto L = analyzeCloudLayout(m, {});
 	std::vector<CloudPoint> pts;
 	extractCloudPoints(m, L, pts);
@@ -145,7 +188,8 @@ TEST(IngestPointCloud2, BigEndianClouds)
 
 TEST(IngestPointCloud2, DamageIsNamed)
 {
-	auto m = makeCloud({{"x", 7}, {"y", 7}, {"intensity", 7}}, {{1, 2, 3}}, kStamp);
+	auto m =
+	    makeCloud({{"x", 7}, {"y", 7}, {"intensity", 7}}, {{1, 2, 3}}, kStamp);
 	try
 	{
 		analyzeCloudLayout(m, {});
@@ -153,13 +197,17 @@ TEST(IngestPointCloud2, DamageIsNamed)
 	}
 	catch (const DecodeError& e)
 	{
-		EXPECT_NE(std::string(e.what()).find("x/y/z"), std::string::npos) << e.what();
-		EXPECT_NE(std::string(e.what()).find("intensity"), std::string::npos) << e.what();
+		EXPECT_NE(std::string(e.what()).find("x/y/z"), std::string::npos)
+		    << e.what();
+		EXPECT_NE(std::string(e.what()).find("intensity"), std::string::npos)
+		    << e.what();
 	}
-	auto m2 = makeCloud({{"x", 7}, {"y", 7}, {"z", 7}}, {{1, 2, 3}, {4, 5, 6}}, kStamp);
+	auto m2 = makeCloud({{"x", 7}, {"y", 7}, {"z", 7}}, {{1, 2, 3}, {4, 5, 6}},
+	                    kStamp);
 	m2.fields[2].offset = m2.point_step;  // beyond the point
 	EXPECT_THROW(analyzeCloudLayout(m2, {}), DecodeError);
-	auto m3 = makeCloud({{"x", 7}, {"y", 7}, {"z", 7}}, {{1, 2, 3}, {4, 5, 6}}, kStamp);
+	auto m3 = makeCloud({{"x", 7}, {"y", 7}, {"z", 7}}, {{1, 2, 3}, {4, 5, 6}},
+	                    kStamp);
 	m3.data.resize(m3.data.size() - 1);
 	const auto L3 = analyzeCloudLayout(m3, {});
 	std::vector<CloudPoint> pts;

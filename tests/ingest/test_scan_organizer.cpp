@@ -41,14 +41,17 @@ mrpt::obs::CObservationRotatingScan syntheticScan(int n = 1800)
 			// Holes (sky, absorbers) in a third of the cells; none in the
 			// first and last column so the grid ends are observed.
 			if (c > 0 && c < n - 1 && ((r * 7 + c * 13) % 3 == 0)) continue;
-			const double range = 3.0 + 20.0 * (0.5 + 0.5 * std::sin(c * 0.01 + r));
-			s.rangeImage(r, c) = static_cast<uint16_t>(std::lround(range / 0.002));
+			const double range =
+			    3.0 + 20.0 * (0.5 + 0.5 * std::sin(c * 0.01 + r));
+			s.rangeImage(r, c) =
+			    static_cast<uint16_t>(std::lround(range / 0.002));
 			s.intensityImage(r, c) = static_cast<uint8_t>((r * 16 + c) % 256);
 		}
 	return s;
 }
 
-std::vector<CloudPoint> toCloud(const core::ScanPoints& sp, const std::vector<int>& ring_of_row)
+std::vector<CloudPoint> toCloud(const core::ScanPoints& sp,
+                                const std::vector<int>& ring_of_row)
 {
 	std::vector<CloudPoint> out;
 	for (const auto& p : sp.points)
@@ -74,9 +77,11 @@ void expectSamePoints(const core::ScanPoints& a, const core::ScanPoints& b)
 	{
 		const auto &p = a.points[i], &q = b.points[i];
 		ASSERT_EQ(p.ring, q.ring) << i;
-		max_d = std::max({max_d, double(std::abs(p.x - q.x)), double(std::abs(p.y - q.y)),
-						  double(std::abs(p.z - q.z))});
-		max_dt = std::max(max_dt, std::abs((a.stamp_s + p.t_s) - (b.stamp_s + q.t_s)));
+		max_d = std::max({max_d, double(std::abs(p.x - q.x)),
+		                  double(std::abs(p.y - q.y)),
+		                  double(std::abs(p.z - q.z))});
+		max_dt = std::max(max_dt,
+		                  std::abs((a.stamp_s + p.t_s) - (b.stamp_s + q.t_s)));
 		EXPECT_EQ(p.intensity, q.intensity);
 	}
 	EXPECT_LT(max_d, 2e-5) << "points differ beyond float precision";
@@ -105,7 +110,8 @@ TEST(IngestOrganizer, RangeImageRoundTripIsExact)
 	EXPECT_LT(std::abs(out.azimuthSpan - scan.azimuthSpan), 1e-6);
 	for (int r = 0; r < 16; r++)
 		for (int c = 0; c < scan.columnCount; c++)
-			ASSERT_EQ(out.rangeImage(r, c), scan.rangeImage(r, c)) << r << "," << c;
+			ASSERT_EQ(out.rangeImage(r, c), scan.rangeImage(r, c))
+			    << r << "," << c;
 	expectSamePoints(sp, core::unpackRotatingScan(out));
 }
 
@@ -118,12 +124,12 @@ TEST(IngestOrganizer, RingOrderDetectedFromElevations)
 	std::vector<int> asc(16), desc(16);
 	for (int k = 0; k < 16; k++)
 	{
-		asc[by_el[k]] = k;	// ring k = k-th lowest beam (ROS velodyne driver)
+		asc[by_el[k]] = k;  // ring k = k-th lowest beam (ROS velodyne driver)
 		desc[by_el[k]] = 15 - k;
 	}
 	for (const auto& [order, map] :
-		 {std::make_pair(RingOrder::ElevationAscending, asc),
-		  std::make_pair(RingOrder::ElevationDescending, desc)})
+	     {std::make_pair(RingOrder::ElevationAscending, asc),
+	      std::make_pair(RingOrder::ElevationDescending, desc)})
 	{
 		ScanOrganizer org(OrganizerOptions{});
 		mrpt::obs::CObservationRotatingScan out;
@@ -173,11 +179,13 @@ TEST(IngestOrganizer, WrongModelOrRingIsAnError)
 	}
 	catch (const std::runtime_error& e)
 	{
-		EXPECT_NE(std::string(e.what()).find("HDL32"), std::string::npos) << e.what();
+		EXPECT_NE(std::string(e.what()).find("HDL32"), std::string::npos)
+		    << e.what();
 	}
 	cloud[5].ring = 16;
 	ScanOrganizer org16(OrganizerOptions{});
-	EXPECT_THROW(org16.organize(cloud, kStampNs, true, out), std::runtime_error);
+	EXPECT_THROW(org16.organize(cloud, kStampNs, true, out),
+	             std::runtime_error);
 }
 
 TEST(IngestOrganizer, EmptyCloudGivesEmptyScan)

@@ -21,7 +21,8 @@ template <typename M>
 std::vector<uint8_t> ros1Bytes(const M& m)
 {
 	std::vector<uint8_t> buf(ros::serialization::serializationLength(m));
-	ros::serialization::OStream s(buf.data(), static_cast<uint32_t>(buf.size()));
+	ros::serialization::OStream s(buf.data(),
+	                              static_cast<uint32_t>(buf.size()));
 	ros::serialization::serialize(s, m);
 	return buf;
 }
@@ -54,15 +55,18 @@ sensor_msgs::Imu sampleImu()
 std::vector<uint8_t> cdrImu(const sensor_msgs::Imu& m)
 {
 	CdrWriter w;
-	w.header(static_cast<int32_t>(m.header.stamp.sec), m.header.stamp.nsec, m.header.frame_id);
-	for (double v : {m.orientation.x, m.orientation.y, m.orientation.z, m.orientation.w})
+	w.header(static_cast<int32_t>(m.header.stamp.sec), m.header.stamp.nsec,
+	         m.header.frame_id);
+	for (double v :
+	     {m.orientation.x, m.orientation.y, m.orientation.z, m.orientation.w})
 		w.put<double>(v);
 	for (double v : m.orientation_covariance) w.put<double>(v);
-	for (double v : {m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z})
+	for (double v :
+	     {m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z})
 		w.put<double>(v);
 	for (double v : m.angular_velocity_covariance) w.put<double>(v);
-	for (double v :
-		 {m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z})
+	for (double v : {m.linear_acceleration.x, m.linear_acceleration.y,
+	                 m.linear_acceleration.z})
 		w.put<double>(v);
 	for (double v : m.linear_acceleration_covariance) w.put<double>(v);
 	return w.data();
@@ -84,10 +88,12 @@ void expectImu(const ImuMsg& d, const sensor_msgs::Imu& m)
 
 TEST(IngestMessages, TypeNamesOfRos1AndRos2)
 {
-	EXPECT_EQ(normalizeTypeName("sensor_msgs/msg/PointCloud2"), "sensor_msgs/PointCloud2");
+	EXPECT_EQ(normalizeTypeName("sensor_msgs/msg/PointCloud2"),
+	          "sensor_msgs/PointCloud2");
 	EXPECT_EQ(kindOfType("sensor_msgs/msg/Imu"), MsgKind::Imu);
 	EXPECT_EQ(kindOfType("sensor_msgs/NavSatFix"), MsgKind::NavSatFix);
-	EXPECT_EQ(kindOfType("velodyne_msgs/msg/VelodyneScan"), MsgKind::VelodyneScan);
+	EXPECT_EQ(kindOfType("velodyne_msgs/msg/VelodyneScan"),
+	          MsgKind::VelodyneScan);
 	EXPECT_EQ(kindOfType("tf2_msgs/TFMessage"), MsgKind::TfMessage);
 	EXPECT_EQ(kindOfType("sensor_msgs/LaserScan"), MsgKind::Unknown);
 	EXPECT_EQ(ros1Md5(MsgKind::Imu), "6a62c6daae103f4ff57a132d6f95cec2");
@@ -108,10 +114,12 @@ TEST(IngestMessages, BigEndianCdrIsSwapped)
 	// through a parallel writer.
 	const auto m = sampleImu();
 	std::vector<uint8_t> be = {0x00, 0x00, 0x00, 0x00};
-	auto align = [&](size_t n) {
+	auto align = [&](size_t n)
+	{
 		while ((be.size() - 4) % n) be.push_back(0);
 	};
-	auto put = [&](auto v) {
+	auto put = [&](auto v)
+	{
 		align(sizeof(v));
 		uint8_t b[sizeof(v)];
 		std::memcpy(b, &v, sizeof(v));
@@ -122,11 +130,16 @@ TEST(IngestMessages, BigEndianCdrIsSwapped)
 	put(static_cast<uint32_t>(m.header.frame_id.size() + 1));
 	for (char c : m.header.frame_id) be.push_back(static_cast<uint8_t>(c));
 	be.push_back(0);
-	for (double v : {m.orientation.x, m.orientation.y, m.orientation.z, m.orientation.w}) put(v);
+	for (double v :
+	     {m.orientation.x, m.orientation.y, m.orientation.z, m.orientation.w})
+		put(v);
 	for (double v : m.orientation_covariance) put(v);
-	for (double v : {m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z}) put(v);
+	for (double v :
+	     {m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z})
+		put(v);
 	for (double v : m.angular_velocity_covariance) put(v);
-	for (double v : {m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z})
+	for (double v : {m.linear_acceleration.x, m.linear_acceleration.y,
+	                 m.linear_acceleration.z})
 		put(v);
 	for (double v : m.linear_acceleration_covariance) put(v);
 	expectImu(decodeImu(be.data(), be.size(), Wire::Cdr), m);
@@ -136,9 +149,10 @@ TEST(IngestMessages, NavSatFixAlignmentAfterInt8Status)
 {
 	sensor_msgs::NavSatFix m;
 	m.header.stamp = ros::Time(1600000000, 5);
-	m.header.frame_id = "gps";	// 4 chars: string ends unaligned for the int8
+	m.header.frame_id = "gps";  // 4 chars: string ends unaligned for the int8
 	m.status.status = sensor_msgs::NavSatStatus::STATUS_GBAS_FIX;
-	m.status.service = sensor_msgs::NavSatStatus::SERVICE_GPS | sensor_msgs::NavSatStatus::SERVICE_GALILEO;
+	m.status.service = sensor_msgs::NavSatStatus::SERVICE_GPS |
+	                   sensor_msgs::NavSatStatus::SERVICE_GALILEO;
 	m.latitude = 60.123456789;
 	m.longitude = 10.987654321;
 	m.altitude = 123.5;
@@ -156,7 +170,8 @@ TEST(IngestMessages, NavSatFixAlignmentAfterInt8Status)
 	w.put<uint8_t>(m.position_covariance_type);
 
 	const auto a = ros1Bytes(m);
-	for (const auto& [bytes, wire] : {std::make_pair(a, Wire::Ros1), std::make_pair(w.data(), Wire::Cdr)})
+	for (const auto& [bytes, wire] :
+	     {std::make_pair(a, Wire::Ros1), std::make_pair(w.data(), Wire::Cdr)})
 	{
 		const auto d = decodeNavSatFix(bytes.data(), bytes.size(), wire);
 		EXPECT_EQ(d.header.stamp_ns, 1600000000000000005LL);
@@ -192,7 +207,8 @@ TEST(IngestMessages, PointCloud2BothWires)
 	m.point_step = 22;
 	m.row_step = 44;
 	m.data.resize(44);
-	for (size_t i = 0; i < m.data.size(); i++) m.data[i] = static_cast<uint8_t>(i * 7);
+	for (size_t i = 0; i < m.data.size(); i++)
+		m.data[i] = static_cast<uint8_t>(i * 7);
 	m.is_dense = true;
 
 	CdrWriter w;
@@ -215,7 +231,8 @@ TEST(IngestMessages, PointCloud2BothWires)
 	w.put<uint8_t>(1);
 
 	const auto a = ros1Bytes(m);
-	for (const auto& [bytes, wire] : {std::make_pair(a, Wire::Ros1), std::make_pair(w.data(), Wire::Cdr)})
+	for (const auto& [bytes, wire] :
+	     {std::make_pair(a, Wire::Ros1), std::make_pair(w.data(), Wire::Cdr)})
 	{
 		const auto d = decodePointCloud2(bytes.data(), bytes.size(), wire);
 		EXPECT_EQ(d.header.stamp_ns, 1500000000250000000LL);
@@ -250,15 +267,18 @@ TEST(IngestMessages, TfMessageBothWires)
 	w.put<uint32_t>(2);
 	for (const auto& t : m.transforms)
 	{
-		w.header(static_cast<int32_t>(t.header.stamp.sec), 0, t.header.frame_id);
+		w.header(static_cast<int32_t>(t.header.stamp.sec), 0,
+		         t.header.frame_id);
 		w.str(t.child_frame_id);
 		for (double v : {t.transform.translation.x, t.transform.translation.y,
-						 t.transform.translation.z, t.transform.rotation.x,
-						 t.transform.rotation.y, t.transform.rotation.z, t.transform.rotation.w})
+		                 t.transform.translation.z, t.transform.rotation.x,
+		                 t.transform.rotation.y, t.transform.rotation.z,
+		                 t.transform.rotation.w})
 			w.put<double>(v);
 	}
 	const auto a = ros1Bytes(m);
-	for (const auto& [bytes, wire] : {std::make_pair(a, Wire::Ros1), std::make_pair(w.data(), Wire::Cdr)})
+	for (const auto& [bytes, wire] :
+	     {std::make_pair(a, Wire::Ros1), std::make_pair(w.data(), Wire::Cdr)})
 	{
 		const auto d = decodeTfMessage(bytes.data(), bytes.size(), wire);
 		ASSERT_EQ(d.transforms.size(), 2u);
@@ -274,14 +294,17 @@ TEST(IngestMessages, VelodyneScanRos1RawBytesAndCdr)
 	// velodyne_msgs has no Debian package: build the ROS 1 bytes by hand
 	// (Header{seq, stamp, frame_id}, uint32 count, {time, uint8[1206]}...).
 	std::vector<uint8_t> r1;
-	auto put32 = [&](uint32_t v) {
-		for (int i = 0; i < 4; i++) r1.push_back(static_cast<uint8_t>(v >> (8 * i)));
+	auto put32 = [&](uint32_t v)
+	{
+		for (int i = 0; i < 4; i++)
+			r1.push_back(static_cast<uint8_t>(v >> (8 * i)));
 	};
 	put32(3);
 	put32(100);
 	put32(7);
 	put32(8);
-	for (char c : std::string("velodyne")) r1.push_back(static_cast<uint8_t>(c));
+	for (char c : std::string("velodyne"))
+		r1.push_back(static_cast<uint8_t>(c));
 	put32(2);
 	CdrWriter w;
 	w.header(100, 7, "velodyne");
@@ -292,11 +315,13 @@ TEST(IngestMessages, VelodyneScanRos1RawBytesAndCdr)
 		put32(1000 + k);
 		w.time(100, 1000 + k);
 		std::vector<uint8_t> pkt(kVelodynePacketBytes);
-		for (size_t i = 0; i < pkt.size(); i++) pkt[i] = static_cast<uint8_t>(i + 3 * k);
+		for (size_t i = 0; i < pkt.size(); i++)
+			pkt[i] = static_cast<uint8_t>(i + 3 * k);
 		r1.insert(r1.end(), pkt.begin(), pkt.end());
 		w.bytes(pkt.data(), pkt.size());
 	}
-	for (const auto& [bytes, wire] : {std::make_pair(r1, Wire::Ros1), std::make_pair(w.data(), Wire::Cdr)})
+	for (const auto& [bytes, wire] :
+	     {std::make_pair(r1, Wire::Ros1), std::make_pair(w.data(), Wire::Cdr)})
 	{
 		const auto d = decodeVelodyneScan(bytes.data(), bytes.size(), wire);
 		EXPECT_EQ(d.header.frame_id, "velodyne");
@@ -320,7 +345,8 @@ TEST(IngestMessages, DamagedPayloadsThrowWithContext)
 	}
 	catch (const DecodeError& e)
 	{
-		EXPECT_NE(std::string(e.what()).find("truncated"), std::string::npos) << e.what();
+		EXPECT_NE(std::string(e.what()).find("truncated"), std::string::npos)
+		    << e.what();
 	}
 	auto a = ros1Bytes(m);
 	a.resize(40);
@@ -332,5 +358,6 @@ TEST(IngestMessages, DamagedPayloadsThrowWithContext)
 	// An array count larger than the bytes left.
 	CdrWriter w;
 	w.put<uint32_t>(1000000);
-	EXPECT_THROW(decodeTfMessage(w.data().data(), w.data().size(), Wire::Cdr), DecodeError);
+	EXPECT_THROW(decodeTfMessage(w.data().data(), w.data().size(), Wire::Cdr),
+	             DecodeError);
 }

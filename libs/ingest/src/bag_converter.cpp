@@ -31,30 +31,30 @@ const char* kImu = "bag2rawlog_imu";
 const char* kGnss = "bag2rawlog_gnss";
 
 void requireOneOf(const mrpt::config::CConfigFileBase& c, const std::string& s,
-				  const char* key, const std::string& v,
-				  const std::vector<std::string>& allowed)
+                  const char* key, const std::string& v,
+                  const std::vector<std::string>& allowed)
 {
 	if (std::find(allowed.begin(), allowed.end(), v) != allowed.end()) return;
 	std::string list;
 	for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
-	throw core::ConfigError(core::configOrigin(c) + ": [" + s + "] " + key + " = '" + v +
-							"' is not one of: " + list);
+	throw core::ConfigError(core::configOrigin(c) + ": [" + s + "] " + key +
+	                        " = '" + v + "' is not one of: " + list);
 }
 
 mrpt::poses::CPose3D iniPose(const SensorTopicOptions& o)
 {
-	return mrpt::poses::CPose3D(o.pose_x_m, o.pose_y_m, o.pose_z_m,
-								mrpt::DEG2RAD(o.pose_yaw_deg), mrpt::DEG2RAD(o.pose_pitch_deg),
-								mrpt::DEG2RAD(o.pose_roll_deg));
+	return mrpt::poses::CPose3D(
+	    o.pose_x_m, o.pose_y_m, o.pose_z_m, mrpt::DEG2RAD(o.pose_yaw_deg),
+	    mrpt::DEG2RAD(o.pose_pitch_deg), mrpt::DEG2RAD(o.pose_roll_deg));
 }
 
 std::string poseText(const mrpt::poses::CPose3D& p)
 {
 	std::ostringstream os;
-	os << std::fixed << std::setprecision(3) << "(x,y,z)=(" << p.x() << "," << p.y() << ","
-	   << p.z() << ") m, (yaw,pitch,roll)=(" << std::setprecision(2)
-	   << mrpt::RAD2DEG(p.yaw()) << "," << mrpt::RAD2DEG(p.pitch()) << ","
-	   << mrpt::RAD2DEG(p.roll()) << ") deg";
+	os << std::fixed << std::setprecision(3) << "(x,y,z)=(" << p.x() << ","
+	   << p.y() << "," << p.z() << ") m, (yaw,pitch,roll)=("
+	   << std::setprecision(2) << mrpt::RAD2DEG(p.yaw()) << ","
+	   << mrpt::RAD2DEG(p.pitch()) << "," << mrpt::RAD2DEG(p.roll()) << ") deg";
 	return os.str();
 }
 
@@ -73,7 +73,7 @@ class Converter
 {
    public:
 	Converter(const Bag2RawlogOptions& o, const std::string& bag_path)
-		: opts_(o), bag_path_(bag_path)
+	    : opts_(o), bag_path_(bag_path)
 	{
 	}
 
@@ -84,7 +84,7 @@ class Converter
 	std::string bag_path_;
 	ConversionReport report_;
 	std::unique_ptr<BagReader> bag_;
-	std::map<std::string, Sensor> sensors_;	 ///< by topic
+	std::map<std::string, Sensor> sensors_;  ///< by topic
 	StaticTransforms tf_;
 	bool tf_in_bag_ = false;
 	// Lidar state:
@@ -93,14 +93,16 @@ class Converter
 	std::optional<VelodyneCalib> velodyne_calib_;
 	CloudLayoutOptions layout_opts_;
 	bool layout_logged_ = false;
-	uint64_t pts_in_ = 0, pts_out_ = 0, pts_range_ = 0, pts_dup_ = 0, pts_invalid_ = 0;
+	uint64_t pts_in_ = 0, pts_out_ = 0, pts_range_ = 0, pts_dup_ = 0,
+	         pts_invalid_ = 0;
 	std::vector<CloudPoint> cloud_pts_;
 	std::vector<VelodynePoint> velo_pts_;
 
 	TopicReport& rep(const Sensor& s) { return report_.topics[s.report_index]; }
 	void validate();
 	void readTfStatic();
-	const mrpt::poses::CPose3D& poseOf(Sensor& s, const std::string& header_frame);
+	const mrpt::poses::CPose3D& poseOf(Sensor& s,
+	                                   const std::string& header_frame);
 	void handle(const BagMessage& m, Sensor& s, io::RawlogWriter& w);
 	void handleCloud(const BagMessage& m, Sensor& s, io::RawlogWriter& w);
 	void handleVelodyne(const BagMessage& m, Sensor& s, io::RawlogWriter& w);
@@ -109,8 +111,10 @@ class Converter
 
 void Converter::validate()
 {
-	auto add = [&](const SensorTopicOptions& o, const char* role, const char* section,
-				   std::vector<MsgKind> kinds, bool required) {
+	auto add = [&](const SensorTopicOptions& o, const char* role,
+	               const char* section, std::vector<MsgKind> kinds,
+	               bool required)
+	{
 		if (o.topic.empty()) return;
 		const TopicInfo* t = bag_->findTopic(o.topic);
 		if (!t)
@@ -118,8 +122,9 @@ void Converter::validate()
 			std::string have;
 			for (const auto& x : bag_->topics())
 				have += "\n  " + x.name + " (" + x.type + ")";
-			const std::string msg = "bag '" + bag_path_ + "' has no topic '" + o.topic +
-									"' ([" + section + "] topic); its topics:" + have;
+			const std::string msg = "bag '" + bag_path_ + "' has no topic '" +
+			                        o.topic + "' ([" + section +
+			                        "] topic); its topics:" + have;
 			if (required) throw ConversionSetupError(msg);
 			FS_LOG_WARN(msg << "\n" << role << " is not converted");
 			return;
@@ -127,21 +132,26 @@ void Converter::validate()
 		if (std::find(kinds.begin(), kinds.end(), t->kind) == kinds.end())
 		{
 			std::string want;
-			for (auto k : kinds) want += (want.empty() ? "" : " or ") + std::string(kindName(k));
-			throw ConversionSetupError("topic " + o.topic + " has type " + t->type +
-									   "; the " + role + " topic must be " + want);
+			for (auto k : kinds)
+				want += (want.empty() ? "" : " or ") + std::string(kindName(k));
+			throw ConversionSetupError("topic " + o.topic + " has type " +
+			                           t->type + "; the " + role +
+			                           " topic must be " + want);
 		}
-		if (bag_->format() == BagFormat::Ros1 && !t->md5.empty() && t->md5 != "*" &&
-			t->md5 != ros1Md5(t->kind))
-			throw ConversionSetupError("topic " + o.topic + " is recorded as " + t->type +
-									   " with definition md5 " + t->md5 + ", expected " +
-									   ros1Md5(t->kind) +
-									   ": the message layout differs from the known one");
+		if (bag_->format() == BagFormat::Ros1 && !t->md5.empty() &&
+		    t->md5 != "*" && t->md5 != ros1Md5(t->kind))
+			throw ConversionSetupError(
+			    "topic " + o.topic + " is recorded as " + t->type +
+			    " with definition md5 " + t->md5 + ", expected " +
+			    ros1Md5(t->kind) +
+			    ": the message layout differs from the known one");
 		if (bag_->format() == BagFormat::Ros2 && t->serialization != "cdr")
-			throw ConversionSetupError("topic " + o.topic + " is serialized as '" +
-									   t->serialization + "'; only cdr is supported");
+			throw ConversionSetupError(
+			    "topic " + o.topic + " is serialized as '" + t->serialization +
+			    "'; only cdr is supported");
 		if (sensors_.count(o.topic))
-			throw ConversionSetupError("topic " + o.topic + " is configured for two sensors");
+			throw ConversionSetupError("topic " + o.topic +
+			                           " is configured for two sensors");
 		Sensor s;
 		s.opts = &o;
 		s.section = section;
@@ -155,25 +165,30 @@ void Converter::validate()
 		sensors_[o.topic] = s;
 		if (std::string(role) == "lidar") lidar_kind_ = t->kind;
 	};
-	add(opts_.lidar, "lidar", kLidar, {MsgKind::PointCloud2, MsgKind::VelodyneScan}, true);
+	add(opts_.lidar, "lidar", kLidar,
+	    {MsgKind::PointCloud2, MsgKind::VelodyneScan}, true);
 	add(opts_.imu, "imu", kImu, {MsgKind::Imu}, false);
 	add(opts_.gnss, "gnss", kGnss, {MsgKind::NavSatFix}, false);
 	if (sensors_.empty())
-		throw ConversionSetupError("no topic to convert: set [" + std::string(kLidar) + "] topic");
+		throw ConversionSetupError("no topic to convert: set [" +
+		                           std::string(kLidar) + "] topic");
 
 	const auto& L = opts_.lidar;
 	if (lidar_kind_ == MsgKind::PointCloud2)
 	{
 		if (L.lidar_model == "auto")
-			throw ConversionSetupError("[" + std::string(kLidar) +
-									   "] lidar_model = auto only works for velodyne "
-									   "packets; name the model of a PointCloud2 topic");
+			throw ConversionSetupError(
+			    "[" + std::string(kLidar) +
+			    "] lidar_model = auto only works for velodyne "
+			    "packets; name the model of a PointCloud2 topic");
 		OrganizerOptions oo;
 		oo.lidar_model = L.lidar_model;
 		oo.ring_order = parseRingOrder(L.ring_order);
 		oo.range_resolution_m = L.range_resolution_m;
 		oo.rate_hz = L.rate_hz;
-		oo.rotation_sign = L.rotation == "cw" ? -1 : L.rotation == "ccw" ? 1 : 0;
+		oo.rotation_sign = L.rotation == "cw"    ? -1
+		                   : L.rotation == "ccw" ? 1
+		                                         : 0;
 		oo.min_range_m = L.min_range_m;
 		oo.max_range_m = L.max_range_m;
 		organizer_.emplace(oo);
@@ -190,8 +205,8 @@ void Converter::validate()
 		}
 		catch (const std::exception& e)
 		{
-			throw ConversionSetupError(std::string("[") + kLidar + "] calibration_file: " +
-									   e.what());
+			throw ConversionSetupError(std::string("[") + kLidar +
+			                           "] calibration_file: " + e.what());
 		}
 	}
 }
@@ -202,8 +217,9 @@ void Converter::readTfStatic()
 	const TopicInfo* t = bag_->findTopic(opts_.tf_static_topic);
 	if (!t) return;
 	if (t->kind != MsgKind::TfMessage)
-		throw ConversionSetupError("topic " + opts_.tf_static_topic + " has type " + t->type +
-								   ", expected tf2_msgs/TFMessage");
+		throw ConversionSetupError("topic " + opts_.tf_static_topic +
+		                           " has type " + t->type +
+		                           ", expected tf2_msgs/TFMessage");
 	TopicReport r;
 	r.role = "tf_static";
 	r.topic = t->name;
@@ -234,7 +250,8 @@ void Converter::readTfStatic()
 		catch (const DecodeError& e)
 		{
 			throw ConversionSetupError("topic " + t->name + " message #" +
-									   std::to_string(m.index) + ": " + e.what());
+			                           std::to_string(m.index) + ": " +
+			                           e.what());
 		}
 	}
 	tf_in_bag_ = !tf_.empty();
@@ -242,16 +259,18 @@ void Converter::readTfStatic()
 	report_.topics.push_back(r);
 }
 
-const mrpt::poses::CPose3D& Converter::poseOf(Sensor& s, const std::string& header_frame)
+const mrpt::poses::CPose3D& Converter::poseOf(Sensor& s,
+                                              const std::string& header_frame)
 {
-	const std::string frame =
-		canonicalFrame(s.opts->frame_id.empty() ? header_frame : s.opts->frame_id);
+	const std::string frame = canonicalFrame(
+	    s.opts->frame_id.empty() ? header_frame : s.opts->frame_id);
 	if (s.pose_resolved)
 	{
 		if (frame != s.frame)
 			core::logOnce(core::LogLevel::Warn, "frame-change-" + s.opts->topic,
-						  "topic " + s.opts->topic + " changes frame_id from '" + s.frame +
-							  "' to '" + frame + "'; keeping the first frame's pose");
+			              "topic " + s.opts->topic +
+			                  " changes frame_id from '" + s.frame + "' to '" +
+			                  frame + "'; keeping the first frame's pose");
 		return s.pose;
 	}
 	s.frame = frame;
@@ -259,19 +278,22 @@ const mrpt::poses::CPose3D& Converter::poseOf(Sensor& s, const std::string& head
 	if (tf_in_bag_ && tf_.lookup(frame, opts_.base_frame, s.pose))
 	{
 		rep(s).pose_source = opts_.tf_static_topic + " (" + frame + " -> " +
-							 canonicalFrame(opts_.base_frame) + ") " + poseText(s.pose);
+		                     canonicalFrame(opts_.base_frame) + ") " +
+		                     poseText(s.pose);
 		return s.pose;
 	}
 	s.pose = iniPose(*s.opts);
-	rep(s).pose_source = std::string("INI [") + s.section + "] pose_* " + poseText(s.pose) +
-						 (tf_in_bag_ ? " (frame '" + frame + "' has no chain to '" +
-										   opts_.base_frame + "' in " +
-										   opts_.tf_static_topic + ")"
-									 : " (no " + opts_.tf_static_topic + " in the bag)");
+	rep(s).pose_source =
+	    std::string("INI [") + s.section + "] pose_* " + poseText(s.pose) +
+	    (tf_in_bag_
+	         ? " (frame '" + frame + "' has no chain to '" + opts_.base_frame +
+	               "' in " + opts_.tf_static_topic + ")"
+	         : " (no " + opts_.tf_static_topic + " in the bag)");
 	if (tf_in_bag_)
-		FS_LOG_WARN("topic " << s.opts->topic << ": frame '" << frame << "' not found under '"
-							 << opts_.base_frame << "' in " << opts_.tf_static_topic
-							 << " (has: " << tf_.describe() << "); using the INI pose");
+		FS_LOG_WARN("topic " << s.opts->topic << ": frame '" << frame
+		                     << "' not found under '" << opts_.base_frame
+		                     << "' in " << opts_.tf_static_topic << " (has: "
+		                     << tf_.describe() << "); using the INI pose");
 	return s.pose;
 }
 
@@ -283,15 +305,17 @@ void Converter::handleCloud(const BagMessage& m, Sensor& s, io::RawlogWriter& w)
 	if (!layout_logged_)
 	{
 		r.detail = "layout: " + layout.describe();
-		FS_LOG_INFO("topic " << s.opts->topic << ": PointCloud2 " << layout.describe());
+		FS_LOG_INFO("topic " << s.opts->topic << ": PointCloud2 "
+		                     << layout.describe());
 		layout_logged_ = true;
 	}
 	const std::string& mode = opts_.lidar.cloud_output;
 	const bool rotating = mode == "CObservationRotatingScan" ||
-						  (mode == "auto" && layout.ring.present);
+	                      (mode == "auto" && layout.ring.present);
 	if (rotating && !layout.ring.present)
-		throw DecodeError("the cloud has no ring field, which CObservationRotatingScan "
-						  "needs (set ring_field, or cloud_output = CObservationPointCloud)");
+		throw DecodeError(
+		    "the cloud has no ring field, which CObservationRotatingScan "
+		    "needs (set ring_field, or cloud_output = CObservationPointCloud)");
 	pts_invalid_ += extractCloudPoints(cloud, layout, cloud_pts_);
 	if (cloud_pts_.empty())
 	{
@@ -304,7 +328,8 @@ void Converter::handleCloud(const BagMessage& m, Sensor& s, io::RawlogWriter& w)
 	{
 		mrpt::obs::CObservationRotatingScan obs;
 		OrganizeStats st;
-		organizer_->organize(cloud_pts_, cloud.header.stamp_ns, layout.time.present, obs, &st);
+		organizer_->organize(cloud_pts_, cloud.header.stamp_ns,
+		                     layout.time.present, obs, &st);
 		obs.sensorLabel = s.opts->sensor_label;
 		obs.sensorPose = pose;
 		obs.originalReceivedTimestamp = received;
@@ -331,17 +356,19 @@ void Converter::handleCloud(const BagMessage& m, Sensor& s, io::RawlogWriter& w)
 			map->reserve(cloud_pts_.size());
 			for (const auto& p : cloud_pts_)
 				map->insertPointRGB(p.x, p.y, p.z, p.intensity,
-									static_cast<float>(p.t_s - t_min), 0.f);
+				                    static_cast<float>(p.t_s - t_min), 0.f);
 			obs->pointcloud = map;
 		}
 		else
 		{
 			auto map = mrpt::maps::CPointsMapXYZI::Create();
 			map->reserve(cloud_pts_.size());
-			for (const auto& p : cloud_pts_) map->insertPointRGB(p.x, p.y, p.z, p.intensity, 0, 0);
+			for (const auto& p : cloud_pts_)
+				map->insertPointRGB(p.x, p.y, p.z, p.intensity, 0, 0);
 			obs->pointcloud = map;
 		}
-		obs->timestamp = fromUnixNs(cloud.header.stamp_ns + std::llround(t_min * 1e9));
+		obs->timestamp =
+		    fromUnixNs(cloud.header.stamp_ns + std::llround(t_min * 1e9));
 		pts_in_ += cloud_pts_.size();
 		pts_out_ += cloud_pts_.size();
 		w.write(*obs);
@@ -349,7 +376,8 @@ void Converter::handleCloud(const BagMessage& m, Sensor& s, io::RawlogWriter& w)
 	r.observations_out++;
 }
 
-void Converter::handleVelodyne(const BagMessage& m, Sensor& s, io::RawlogWriter& w)
+void Converter::handleVelodyne(const BagMessage& m, Sensor& s,
+                               io::RawlogWriter& w)
 {
 	auto& r = rep(s);
 	const VelodyneScanMsg msg = decodeVelodyneScan(m.data, m.size, m.wire);
@@ -358,21 +386,31 @@ void Converter::handleVelodyne(const BagMessage& m, Sensor& s, io::RawlogWriter&
 		r.skipped["no packets"]++;
 		return;
 	}
-	const uint8_t id = msg.packets[0].data[1205];
-	const std::string model = lidarModelForVelodyneId(id);
-	if (model.empty())
-		throw DecodeError("velodyne packets have model byte " + std::to_string(id) +
-						  ", not a supported VLP-16 / HDL-32E / VLP-32C");
 	const auto& L = opts_.lidar;
-	if (L.lidar_model != "auto" && core::findLidarModel(L.lidar_model) !=
-									   core::findLidarModel(model))
+	const uint8_t byte = msg.packets[0].data[1205];
+	// Early firmware leaves the model byte 0: then the configured model (or
+	// its calibration) says how to decode.
+	size_t lasers = velodyne_calib_ ? velodyne_calib_->lasers.size() : 0;
+	if (!lasers && L.lidar_model != "auto")
+		lasers = core::lidarModelByName(L.lidar_model).rings();
+	const std::string model =
+	    lidarModelForVelodyneId(resolveVelodyneModel(byte, lasers));
+	if (model.empty())
+		throw DecodeError(
+		    "velodyne packets have model byte " + std::to_string(byte) +
+		    ", not a supported VLP-16 / HDL-32E / VLP-32C (name the model "
+		    "in lidar_model)");
+	if (L.lidar_model != "auto" &&
+	    core::findLidarModel(L.lidar_model) != core::findLidarModel(model))
 		throw DecodeError("the packets come from a " + model + " but [" +
-						  std::string(kLidar) + "] lidar_model = " + L.lidar_model);
+		                  std::string(kLidar) +
+		                  "] lidar_model = " + L.lidar_model);
 	if (!velodyne_calib_)
 	{
 		velodyne_calib_ = defaultVelodyneCalibration(model);
-		FS_LOG_INFO("topic " << s.opts->topic << ": " << model
-							 << " packets, calibration: " << velodyne_calib_->source);
+		FS_LOG_INFO("topic "
+		            << s.opts->topic << ": " << model
+		            << " packets, calibration: " << velodyne_calib_->source);
 	}
 	if (r.detail.empty())
 		r.detail = model + " packets, calibration " + velodyne_calib_->source;
@@ -410,8 +448,12 @@ void Converter::handle(const BagMessage& m, Sensor& s, io::RawlogWriter& w)
 	r.messages_in++;
 	switch (m.topic->kind)
 	{
-		case MsgKind::PointCloud2: handleCloud(m, s, w); break;
-		case MsgKind::VelodyneScan: handleVelodyne(m, s, w); break;
+		case MsgKind::PointCloud2:
+			handleCloud(m, s, w);
+			break;
+		case MsgKind::VelodyneScan:
+			handleVelodyne(m, s, w);
+			break;
 		case MsgKind::Imu:
 		{
 			const ImuMsg msg = decodeImu(m.data, m.size, m.wire);
@@ -435,7 +477,8 @@ void Converter::handle(const BagMessage& m, Sensor& s, io::RawlogWriter& w)
 			r.observations_out++;
 			break;
 		}
-		default: throw DecodeError("unsupported message type " + m.topic->type);
+		default:
+			throw DecodeError("unsupported message type " + m.topic->type);
 	}
 }
 
@@ -450,10 +493,11 @@ void Converter::finishDetail()
 		if (pts_invalid_) os << ", " << pts_invalid_ << " NaN/zero dropped";
 		os << ", " << pts_out_ << " written";
 		if (pts_range_) os << ", " << pts_range_ << " out of range";
-		if (pts_dup_) os << ", " << pts_dup_ << " second returns in an occupied cell";
+		if (pts_dup_)
+			os << ", " << pts_dup_ << " second returns in an occupied cell";
 		if (organizer_ && lidar_kind_ == MsgKind::PointCloud2)
-			os << "; ring order " << ringOrderName(organizer_->ringOrder()) << " for "
-			   << organizer_->model().name;
+			os << "; ring order " << ringOrderName(organizer_->ringOrder())
+			   << " for " << organizer_->model().name;
 		r.detail += (r.detail.empty() ? "" : "\n") + os.str();
 	}
 }
@@ -472,7 +516,7 @@ ConversionReport Converter::run(const std::string& out_path, bool show_progress)
 	readTfStatic();
 	if (!bag_->damage().empty())
 		FS_LOG_WARN("bag '" << bag_path_ << "': " << bag_->damage()
-							<< "; converting the messages before the damage");
+		                    << "; converting the messages before the damage");
 
 	std::vector<std::string> topics;
 	for (const auto& [t, s] : sensors_) topics.push_back(t);
@@ -495,14 +539,15 @@ ConversionReport Converter::run(const std::string& out_path, bool show_progress)
 			catch (const std::exception& e)
 			{
 				throw BagError("topic " + m.topic->name + " message #" +
-								   std::to_string(m.index) + " (" + m.topic->type +
-								   "): " + e.what(),
-							   m.topic->name, static_cast<int64_t>(m.index));
+				                   std::to_string(m.index) + " (" +
+				                   m.topic->type + "): " + e.what(),
+				               m.topic->name, static_cast<int64_t>(m.index));
 			}
 			if (first_ns < 0) first_ns = m.time_ns;
 			if (s.opts == &opts_.lidar) scans = rep(s).observations_out;
 			if (show_progress)
-				progress.update(scans, bag_->fractionRead(), (m.time_ns - first_ns) * 1e-9);
+				progress.update(scans, bag_->fractionRead(),
+				                (m.time_ns - first_ns) * 1e-9);
 		}
 	}
 	catch (const std::exception& e)
@@ -518,8 +563,8 @@ ConversionReport Converter::run(const std::string& out_path, bool show_progress)
 }  // namespace
 
 // ------------------------------------------------------------------ options
-void SensorTopicOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
-											const std::string& s)
+void SensorTopicOptions::loadFromConfigFile(
+    const mrpt::config::CConfigFileBase& c, const std::string& s)
 {
 	FS_LOAD(c, s, topic);
 	FS_LOAD(c, s, sensor_label);
@@ -532,11 +577,11 @@ void SensorTopicOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase&
 	FS_LOAD(c, s, pose_roll_deg);
 	if (!topic.empty() && sensor_label.empty())
 		throw core::ConfigError(core::configOrigin(c) + ": [" + s +
-								"] sensor_label must not be empty");
+		                        "] sensor_label must not be empty");
 }
 
 void SensorTopicOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
-										  const std::string& s) const
+                                          const std::string& s) const
 {
 	c.write(s, "topic", topic);
 	c.write(s, "sensor_label", sensor_label);
@@ -549,8 +594,8 @@ void SensorTopicOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
 	c.write(s, "pose_roll_deg", pose_roll_deg);
 }
 
-void LidarTopicOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
-										   const std::string& s)
+void LidarTopicOptions::loadFromConfigFile(
+    const mrpt::config::CConfigFileBase& c, const std::string& s)
 {
 	SensorTopicOptions::loadFromConfigFile(c, s);
 	FS_LOAD(c, s, lidar_model);
@@ -571,31 +616,38 @@ void LidarTopicOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& 
 	if (lidar_model != "auto" && !core::findLidarModel(lidar_model))
 	{
 		std::string known;
-		for (const auto& n : core::knownLidarModels()) known += (known.empty() ? "" : ", ") + n;
-		throw core::ConfigError(core::configOrigin(c) + ": [" + s + "] lidar_model = '" +
-								lidar_model + "' is unknown (known: " + known + ", auto)");
+		for (const auto& n : core::knownLidarModels())
+			known += (known.empty() ? "" : ", ") + n;
+		throw core::ConfigError(core::configOrigin(c) + ": [" + s +
+		                        "] lidar_model = '" + lidar_model +
+		                        "' is unknown (known: " + known + ", auto)");
 	}
-	requireOneOf(c, s, "cloud_output", cloud_output,
-				 {"auto", "CObservationRotatingScan", "CObservationPointCloud"});
+	requireOneOf(
+	    c, s, "cloud_output", cloud_output,
+	    {"auto", "CObservationRotatingScan", "CObservationPointCloud"});
 	requireOneOf(c, s, "time_encoding", time_encoding,
-				 {"auto", "none", "relative_s", "relative_ns", "absolute_s", "absolute_ns"});
-	requireOneOf(c, s, "ring_order", ring_order,
-				 {"auto", "native", "elevation_ascending", "elevation_descending"});
+	             {"auto", "none", "relative_s", "relative_ns", "absolute_s",
+	              "absolute_ns"});
+	requireOneOf(
+	    c, s, "ring_order", ring_order,
+	    {"auto", "native", "elevation_ascending", "elevation_descending"});
 	requireOneOf(c, s, "rotation", rotation, {"auto", "cw", "ccw"});
 	requireOneOf(c, s, "velodyne_output", velodyne_output,
-				 {"CObservationVelodyneScan", "CObservationRotatingScan"});
-	requireOneOf(c, s, "dual_return", dual_return, {"strongest", "last", "both"});
-	auto positive = [&](const char* k, double v) {
+	             {"CObservationVelodyneScan", "CObservationRotatingScan"});
+	requireOneOf(c, s, "dual_return", dual_return,
+	             {"strongest", "last", "both"});
+	auto positive = [&](const char* k, double v)
+	{
 		if (!(v > 0))
-			throw core::ConfigError(core::configOrigin(c) + ": [" + s + "] " + k +
-									" must be > 0");
+			throw core::ConfigError(core::configOrigin(c) + ": [" + s + "] " +
+			                        k + " must be > 0");
 	};
 	positive("range_resolution_m", range_resolution_m);
 	positive("rate_hz", rate_hz);
 }
 
 void LidarTopicOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
-										 const std::string& s) const
+                                         const std::string& s) const
 {
 	SensorTopicOptions::saveToConfigFile(c, s);
 	c.write(s, "lidar_model", lidar_model);
@@ -625,8 +677,8 @@ Bag2RawlogOptions::Bag2RawlogOptions()
 	gnss.sensor_label = "gnss";
 }
 
-void Bag2RawlogOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
-										   const std::string&)
+void Bag2RawlogOptions::loadFromConfigFile(
+    const mrpt::config::CConfigFileBase& c, const std::string&)
 {
 	FS_LOAD(c, kMain, base_frame);
 	FS_LOAD(c, kMain, use_tf_static);
@@ -634,14 +686,14 @@ void Bag2RawlogOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& 
 	FS_LOAD(c, kMain, compress_level);
 	if (compress_level < 0 || compress_level > 9)
 		throw core::ConfigError(core::configOrigin(c) + ": [" + kMain +
-								"] compress_level must be 0..9");
+		                        "] compress_level must be 0..9");
 	lidar.loadFromConfigFile(c, kLidar);
 	imu.loadFromConfigFile(c, kImu);
 	gnss.loadFromConfigFile(c, kGnss);
 }
 
 void Bag2RawlogOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
-										 const std::string&) const
+                                         const std::string&) const
 {
 	c.write(kMain, "base_frame", base_frame);
 	c.write(kMain, "use_tf_static", use_tf_static);
@@ -652,8 +704,9 @@ void Bag2RawlogOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
 	gnss.saveToConfigFile(c, kGnss);
 }
 
-ConversionReport convertBag(const std::string& bag_path, const std::string& rawlog_path,
-							const Bag2RawlogOptions& opts, bool show_progress)
+ConversionReport convertBag(const std::string& bag_path,
+                            const std::string& rawlog_path,
+                            const Bag2RawlogOptions& opts, bool show_progress)
 {
 	Converter c(opts, bag_path);
 	return c.run(rawlog_path, show_progress);
@@ -661,8 +714,8 @@ ConversionReport convertBag(const std::string& bag_path, const std::string& rawl
 
 void printTopicList(const BagReader& bag, std::ostream& os)
 {
-	os << "bag: " << bag.path() << " (" << (bag.format() == BagFormat::Ros1 ? "ROS 1" : "ROS 2")
-	   << ")\n";
+	os << "bag: " << bag.path() << " ("
+	   << (bag.format() == BagFormat::Ros1 ? "ROS 1" : "ROS 2") << ")\n";
 	if (!bag.damage().empty()) os << "damaged: " << bag.damage() << "\n";
 	size_t w_topic = 5, w_type = 4;
 	for (const auto& t : bag.topics())
@@ -670,22 +723,24 @@ void printTopicList(const BagReader& bag, std::ostream& os)
 		w_topic = std::max(w_topic, t.name.size());
 		w_type = std::max(w_type, t.type.size());
 	}
-	os << std::left << std::setw(w_topic + 2) << "topic" << std::setw(w_type + 2) << "type"
-	   << std::right << std::setw(10) << "messages" << std::setw(10) << "rate_Hz"
-	   << std::setw(10) << "span_s"
+	os << std::left << std::setw(w_topic + 2) << "topic"
+	   << std::setw(w_type + 2) << "type" << std::right << std::setw(10)
+	   << "messages" << std::setw(10) << "rate_Hz" << std::setw(10) << "span_s"
 	   << "  converts as\n";
 	for (const auto& t : bag.topics())
 	{
-		const char* role = t.kind == MsgKind::PointCloud2	 ? "lidar"
-						   : t.kind == MsgKind::VelodyneScan ? "lidar (packets)"
-						   : t.kind == MsgKind::Imu			 ? "imu"
-						   : t.kind == MsgKind::NavSatFix	 ? "gnss"
-						   : t.kind == MsgKind::TfMessage	 ? "extrinsics"
-															 : "-";
-		os << std::left << std::setw(w_topic + 2) << t.name << std::setw(w_type + 2) << t.type
-		   << std::right << std::setw(10) << t.count << std::setw(10) << std::fixed
-		   << std::setprecision(2) << t.rateHz() << std::setw(10) << std::setprecision(2)
-		   << (t.count > 1 ? (t.last_ns - t.first_ns) * 1e-9 : 0.0) << "  " << role << "\n";
+		const char* role = t.kind == MsgKind::PointCloud2    ? "lidar"
+		                   : t.kind == MsgKind::VelodyneScan ? "lidar (packets)"
+		                   : t.kind == MsgKind::Imu          ? "imu"
+		                   : t.kind == MsgKind::NavSatFix    ? "gnss"
+		                   : t.kind == MsgKind::TfMessage    ? "extrinsics"
+		                                                     : "-";
+		os << std::left << std::setw(w_topic + 2) << t.name
+		   << std::setw(w_type + 2) << t.type << std::right << std::setw(10)
+		   << t.count << std::setw(10) << std::fixed << std::setprecision(2)
+		   << t.rateHz() << std::setw(10) << std::setprecision(2)
+		   << (t.count > 1 ? (t.last_ns - t.first_ns) * 1e-9 : 0.0) << "  "
+		   << role << "\n";
 	}
 }
 
@@ -697,10 +752,13 @@ void printReport(const ConversionReport& r, std::ostream& os)
 		os << "  " << t.role << ": " << t.topic << " (" << t.type << ")";
 		if (!t.label.empty()) os << " -> label '" << t.label << "'";
 		os << "\n    messages in: " << t.messages_in;
-		if (t.role != "tf_static") os << ", observations out: " << t.observations_out;
-		for (const auto& [why, n] : t.skipped) os << ", skipped (" << why << "): " << n;
+		if (t.role != "tf_static")
+			os << ", observations out: " << t.observations_out;
+		for (const auto& [why, n] : t.skipped)
+			os << ", skipped (" << why << "): " << n;
 		os << "\n";
-		if (!t.pose_source.empty()) os << "    sensorPose from " << t.pose_source << "\n";
+		if (!t.pose_source.empty())
+			os << "    sensorPose from " << t.pose_source << "\n";
 		if (!t.detail.empty())
 		{
 			std::istringstream is(t.detail);

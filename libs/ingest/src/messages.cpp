@@ -23,13 +23,13 @@ RosMsg deserializeRos1(const uint8_t* data, size_t size, const char* type)
 	try
 	{
 		ros::serialization::IStream s(const_cast<uint8_t*>(data),
-									  static_cast<uint32_t>(size));
+		                              static_cast<uint32_t>(size));
 		ros::serialization::deserialize(s, m);
 	}
 	catch (const ros::Exception& e)
 	{
 		throw DecodeError(std::string("cannot decode ROS 1 ") + type + " (" +
-						  std::to_string(size) + " bytes): " + e.what());
+		                  std::to_string(size) + " bytes): " + e.what());
 	}
 	return m;
 }
@@ -37,7 +37,8 @@ RosMsg deserializeRos1(const uint8_t* data, size_t size, const char* type)
 MsgHeader fromRos1(const std_msgs::Header& h)
 {
 	MsgHeader o;
-	o.stamp_ns = static_cast<int64_t>(h.stamp.sec) * 1000000000LL + h.stamp.nsec;
+	o.stamp_ns =
+	    static_cast<int64_t>(h.stamp.sec) * 1000000000LL + h.stamp.nsec;
 	o.frame_id = h.frame_id;
 	return o;
 }
@@ -86,12 +87,18 @@ const char* kindName(MsgKind k)
 {
 	switch (k)
 	{
-		case MsgKind::PointCloud2: return "sensor_msgs/PointCloud2";
-		case MsgKind::Imu: return "sensor_msgs/Imu";
-		case MsgKind::NavSatFix: return "sensor_msgs/NavSatFix";
-		case MsgKind::TfMessage: return "tf2_msgs/TFMessage";
-		case MsgKind::VelodyneScan: return "velodyne_msgs/VelodyneScan";
-		default: return "unknown";
+		case MsgKind::PointCloud2:
+			return "sensor_msgs/PointCloud2";
+		case MsgKind::Imu:
+			return "sensor_msgs/Imu";
+		case MsgKind::NavSatFix:
+			return "sensor_msgs/NavSatFix";
+		case MsgKind::TfMessage:
+			return "tf2_msgs/TFMessage";
+		case MsgKind::VelodyneScan:
+			return "velodyne_msgs/VelodyneScan";
+		default:
+			return "unknown";
 	}
 }
 
@@ -100,12 +107,18 @@ std::string ros1Md5(MsgKind k)
 	using namespace ros::message_traits;
 	switch (k)
 	{
-		case MsgKind::PointCloud2: return MD5Sum<sensor_msgs::PointCloud2>::value();
-		case MsgKind::Imu: return MD5Sum<sensor_msgs::Imu>::value();
-		case MsgKind::NavSatFix: return MD5Sum<sensor_msgs::NavSatFix>::value();
-		case MsgKind::TfMessage: return MD5Sum<tf2_msgs::TFMessage>::value();
-		case MsgKind::VelodyneScan: return kVelodyneScanMd5;
-		default: return "";
+		case MsgKind::PointCloud2:
+			return MD5Sum<sensor_msgs::PointCloud2>::value();
+		case MsgKind::Imu:
+			return MD5Sum<sensor_msgs::Imu>::value();
+		case MsgKind::NavSatFix:
+			return MD5Sum<sensor_msgs::NavSatFix>::value();
+		case MsgKind::TfMessage:
+			return MD5Sum<tf2_msgs::TFMessage>::value();
+		case MsgKind::VelodyneScan:
+			return kVelodyneScanMd5;
+		default:
+			return "";
 	}
 }
 
@@ -115,7 +128,7 @@ PointCloud2Msg decodePointCloud2(const uint8_t* data, size_t size, Wire wire)
 	if (wire == Wire::Ros1)
 	{
 		auto r = deserializeRos1<sensor_msgs::PointCloud2>(
-			data, size, "sensor_msgs/PointCloud2");
+		    data, size, "sensor_msgs/PointCloud2");
 		m.header = fromRos1(r.header);
 		m.height = r.height;
 		m.width = r.width;
@@ -158,19 +171,19 @@ ImuMsg decodeImu(const uint8_t* data, size_t size, Wire wire)
 	if (wire == Wire::Ros1)
 	{
 		const auto r =
-			deserializeRos1<sensor_msgs::Imu>(data, size, "sensor_msgs/Imu");
+		    deserializeRos1<sensor_msgs::Imu>(data, size, "sensor_msgs/Imu");
 		m.header = fromRos1(r.header);
-		m.orientation_xyzw = {r.orientation.x, r.orientation.y,
-							  r.orientation.z, r.orientation.w};
+		m.orientation_xyzw = {r.orientation.x, r.orientation.y, r.orientation.z,
+		                      r.orientation.w};
 		copyArray(m.orientation_covariance, r.orientation_covariance);
 		m.angular_velocity = {r.angular_velocity.x, r.angular_velocity.y,
-							  r.angular_velocity.z};
+		                      r.angular_velocity.z};
 		copyArray(m.angular_velocity_covariance, r.angular_velocity_covariance);
 		m.linear_acceleration = {r.linear_acceleration.x,
-								 r.linear_acceleration.y,
-								 r.linear_acceleration.z};
+		                         r.linear_acceleration.y,
+		                         r.linear_acceleration.z};
 		copyArray(m.linear_acceleration_covariance,
-				  r.linear_acceleration_covariance);
+		          r.linear_acceleration_covariance);
 		return m;
 	}
 	WireReader r(data, size, wire);
@@ -190,7 +203,7 @@ NavSatFixMsg decodeNavSatFix(const uint8_t* data, size_t size, Wire wire)
 	if (wire == Wire::Ros1)
 	{
 		const auto r = deserializeRos1<sensor_msgs::NavSatFix>(
-			data, size, "sensor_msgs/NavSatFix");
+		    data, size, "sensor_msgs/NavSatFix");
 		m.header = fromRos1(r.header);
 		m.status = r.status.status;
 		m.service = r.status.service;
@@ -219,17 +232,17 @@ TfMsg decodeTfMessage(const uint8_t* data, size_t size, Wire wire)
 	if (wire == Wire::Ros1)
 	{
 		const auto r = deserializeRos1<tf2_msgs::TFMessage>(
-			data, size, "tf2_msgs/TFMessage");
+		    data, size, "tf2_msgs/TFMessage");
 		for (const auto& t : r.transforms)
 		{
 			TransformStampedMsg o;
 			o.header = fromRos1(t.header);
 			o.child_frame_id = t.child_frame_id;
 			o.translation = {t.transform.translation.x,
-							 t.transform.translation.y,
-							 t.transform.translation.z};
+			                 t.transform.translation.y,
+			                 t.transform.translation.z};
 			o.rotation_xyzw = {t.transform.rotation.x, t.transform.rotation.y,
-							   t.transform.rotation.z, t.transform.rotation.w};
+			                   t.transform.rotation.z, t.transform.rotation.w};
 			m.transforms.push_back(o);
 		}
 		return m;

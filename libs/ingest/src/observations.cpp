@@ -42,14 +42,16 @@ void imuFromMsg(const ImuMsg& m, CObservationIMU& out)
 		out.set(IMU_WZ, m.angular_velocity[2]);
 	}
 	const auto& q = m.orientation_xyzw;
-	const double qn = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+	const double qn =
+	    std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
 	if (m.orientation_covariance[0] != -1 && qn > 0.5)
 	{
 		out.set(IMU_ORI_QUAT_X, q[0] / qn);
 		out.set(IMU_ORI_QUAT_Y, q[1] / qn);
 		out.set(IMU_ORI_QUAT_Z, q[2] / qn);
 		out.set(IMU_ORI_QUAT_W, q[3] / qn);
-		mrpt::math::CQuaternionDouble quat(q[3] / qn, q[0] / qn, q[1] / qn, q[2] / qn);
+		mrpt::math::CQuaternionDouble quat(q[3] / qn, q[0] / qn, q[1] / qn,
+		                                   q[2] / qn);
 		double yaw, pitch, roll;
 		quat.rpy(roll, pitch, yaw);
 		out.set(IMU_YAW, yaw);
@@ -62,10 +64,14 @@ uint8_t ggaQualityFromStatus(int8_t status)
 {
 	switch (status)
 	{
-		case 0: return 1;
-		case 1: return 2;
-		case 2: return 4;
-		default: return 0;
+		case 0:
+			return 1;
+		case 1:
+			return 2;
+		case 2:
+			return 4;
+		default:
+			return 0;
 	}
 }
 
@@ -73,10 +79,14 @@ int8_t gpsStatusFromGga(uint8_t quality)
 {
 	switch (quality)
 	{
-		case 1: return 0;
-		case 2: return 1;
-		case 4: return 2;
-		default: return -1;
+		case 1:
+			return 0;
+		case 2:
+			return 1;
+		case 4:
+			return 2;
+		default:
+			return -1;
 	}
 }
 
@@ -86,7 +96,8 @@ void gpsFromMsg(const NavSatFixMsg& m, CObservationGPS& out)
 	out.has_satellite_timestamp = false;
 	out.messages.clear();
 
-	const int64_t sec_of_day = ((m.header.stamp_ns / 1000000000LL) % 86400 + 86400) % 86400;
+	const int64_t sec_of_day =
+	    ((m.header.stamp_ns / 1000000000LL) % 86400 + 86400) % 86400;
 	const double frac = (m.header.stamp_ns % 1000000000LL) * 1e-9;
 	gnss::Message_NMEA_GGA gga;
 	gga.fields.UTCTime.hour = static_cast<uint8_t>(sec_of_day / 3600);
@@ -105,32 +116,38 @@ void gpsFromMsg(const NavSatFixMsg& m, CObservationGPS& out)
 	out.setMsg(gga);
 
 	// BESTPOS as forest-sim writes it: solution status and 1-sigma per axis.
-	const auto& c = m.position_covariance;	// ENU: x = east, y = north
+	const auto& c = m.position_covariance;  // ENU: x = east, y = north
 	gnss::Message_NV_OEM6_BESTPOS best;
 	{
 		// GPS week / ms of week (18 leap seconds since 2017).
 		const double gps_s = m.header.stamp_ns * 1e-9 - 315964800.0 + 18.0;
 		if (gps_s > 0)
 		{
-			best.fields.header.week = static_cast<uint16_t>(std::floor(gps_s / 604800.0));
-			best.fields.header.ms_in_week = static_cast<uint32_t>(
-				std::llround((gps_s - best.fields.header.week * 604800.0) * 1000.0));
+			best.fields.header.week =
+			    static_cast<uint16_t>(std::floor(gps_s / 604800.0));
+			best.fields.header.ms_in_week = static_cast<uint32_t>(std::llround(
+			    (gps_s - best.fields.header.week * 604800.0) * 1000.0));
 		}
 	}
-	best.fields.solution_stat = m.status >= 0 ? gnss::nv_oem6_solution_status::SOL_COMPUTED
-											  : gnss::nv_oem6_solution_status::INSUFFICIENT_OBS;
-	best.fields.position_type = m.status == 0	? gnss::nv_oem6_position_type::SINGLE
-								: m.status == 1 ? gnss::nv_oem6_position_type::PSRDIFF
-								: m.status == 2 ? gnss::nv_oem6_position_type::NARROW_INT
-												: gnss::nv_oem6_position_type::NONE;
+	best.fields.solution_stat =
+	    m.status >= 0 ? gnss::nv_oem6_solution_status::SOL_COMPUTED
+	                  : gnss::nv_oem6_solution_status::INSUFFICIENT_OBS;
+	best.fields.position_type =
+	    m.status == 0   ? gnss::nv_oem6_position_type::SINGLE
+	    : m.status == 1 ? gnss::nv_oem6_position_type::PSRDIFF
+	    : m.status == 2 ? gnss::nv_oem6_position_type::NARROW_INT
+	                    : gnss::nv_oem6_position_type::NONE;
 	best.fields.lat = m.latitude_deg;
 	best.fields.lon = m.longitude_deg;
 	best.fields.hgt = m.altitude_m;
 	if (m.covariance_type != 0)
 	{
-		best.fields.lat_sigma = static_cast<float>(std::sqrt(std::max(0.0, c[4])));
-		best.fields.lon_sigma = static_cast<float>(std::sqrt(std::max(0.0, c[0])));
-		best.fields.hgt_sigma = static_cast<float>(std::sqrt(std::max(0.0, c[8])));
+		best.fields.lat_sigma =
+		    static_cast<float>(std::sqrt(std::max(0.0, c[4])));
+		best.fields.lon_sigma =
+		    static_cast<float>(std::sqrt(std::max(0.0, c[0])));
+		best.fields.hgt_sigma =
+		    static_cast<float>(std::sqrt(std::max(0.0, c[8])));
 	}
 	out.setMsg(best);
 
@@ -151,7 +168,8 @@ void gpsFromMsg(const NavSatFixMsg& m, CObservationGPS& out)
 		for (int i = 0; i < 3; i++)
 			for (int j = 0; j < 3; j++)
 				pzs.pos_covariance(i, j) = static_cast<float>(c[i * 3 + j]);
-		pzs.PSigma = static_cast<float>(std::sqrt(std::max(0.0, c[0] + c[4] + c[8])));
+		pzs.PSigma =
+		    static_cast<float>(std::sqrt(std::max(0.0, c[0] + c[4] + c[8])));
 	}
 	out.setMsg(pzs);
 }

@@ -22,20 +22,27 @@ int64_t pcapFirstRecordNs(const std::string& path)
 	std::ifstream f(path, std::ios::binary);
 	uint8_t h[24 + 16];
 	if (!f.read(reinterpret_cast<char*>(h), sizeof(h))) return -1;
-	auto rd = [&](const uint8_t* p, bool swap) {
+	auto rd = [&](const uint8_t* p, bool swap)
+	{
 		uint32_t v = swap ? (uint32_t(p[0]) << 24 | uint32_t(p[1]) << 16 |
-							 uint32_t(p[2]) << 8 | p[3])
-						  : (uint32_t(p[3]) << 24 | uint32_t(p[2]) << 16 |
-							 uint32_t(p[1]) << 8 | p[0]);
+		                     uint32_t(p[2]) << 8 | p[3])
+		                  : (uint32_t(p[3]) << 24 | uint32_t(p[2]) << 16 |
+		                     uint32_t(p[1]) << 8 | p[0]);
 		return v;
 	};
 	const uint32_t magic = rd(h, false);
 	bool swap = false, nanos = false;
-	if (magic == 0xa1b2c3d4) {}
-	else if (magic == 0xd4c3b2a1) swap = true;
-	else if (magic == 0xa1b23c4d) nanos = true;
-	else if (magic == 0x4d3cb2a1) swap = nanos = true;
-	else return -1;	 // pcapng or not a pcap: MRPT/libpcap will judge
+	if (magic == 0xa1b2c3d4)
+	{
+	}
+	else if (magic == 0xd4c3b2a1)
+		swap = true;
+	else if (magic == 0xa1b23c4d)
+		nanos = true;
+	else if (magic == 0x4d3cb2a1)
+		swap = nanos = true;
+	else
+		return -1;  // pcapng or not a pcap: MRPT/libpcap will judge
 	const int64_t sec = rd(h + 24, swap), frac = rd(h + 28, swap);
 	return sec * 1000000000LL + (nanos ? frac : frac * 1000);
 }
@@ -47,20 +54,26 @@ double coverageDeg(const mrpt::obs::CObservationVelodyneScan& s)
 	if (p.empty()) return 0;
 	double cdeg = 0;
 	for (size_t i = 0; i + 1 < p.size(); i++)
-		cdeg += (36000 + p[i + 1].blocks[0].rotation() - p[i].blocks[0].rotation()) % 36000;
-	cdeg += (36000 + p.back().blocks[11].rotation() - p.back().blocks[0].rotation()) % 36000;
+		cdeg += (36000 + p[i + 1].blocks[0].rotation() -
+		         p[i].blocks[0].rotation()) %
+		        36000;
+	cdeg += (36000 + p.back().blocks[11].rotation() -
+	         p.back().blocks[0].rotation()) %
+	        36000;
 	return cdeg * 0.01;
 }
 }  // namespace
 
-PcapReport convertPcap(const std::string& pcap_path, const std::string& rawlog_path,
-					   const PcapOptions& opts, bool show_progress)
+PcapReport convertPcap(const std::string& pcap_path,
+                       const std::string& rawlog_path, const PcapOptions& opts,
+                       bool show_progress)
 {
 	if (!std::filesystem::is_regular_file(pcap_path))
 		throw std::runtime_error("pcap '" + pcap_path + "' does not exist");
 	if (opts.model != "VLP16" && opts.model != "HDL32")
-		throw std::runtime_error("--model '" + opts.model +
-								 "': MRPT's pcap reader handles VLP16 and HDL32");
+		throw std::runtime_error(
+		    "--model '" + opts.model +
+		    "': MRPT's pcap reader handles VLP16 and HDL32");
 	mrpt::config::CConfigFileMemory cfg;
 	const std::string sec = "velodyne";
 	cfg.write(sec, "pcap_input", pcap_path);
@@ -73,11 +86,13 @@ PcapReport convertPcap(const std::string& pcap_path, const std::string& rawlog_p
 	scanner.loadConfig(cfg, sec);
 	// Set model and calibration explicitly: the INI "model" key alone left
 	// MRPT 2.5.8 with its VLP-16 calibration for an HDL-32 capture.
-	scanner.setModelName(opts.model == "HDL32" ? mrpt::hwdrivers::CVelodyneScanner::HDL32
-											   : mrpt::hwdrivers::CVelodyneScanner::VLP16);
-	scanner.setCalibration(toMrpt(opts.calibration_file.empty()
-									  ? defaultVelodyneCalibration(opts.model)
-									  : loadVelodyneCalibration(opts.calibration_file)));
+	scanner.setModelName(opts.model == "HDL32"
+	                         ? mrpt::hwdrivers::CVelodyneScanner::HDL32
+	                         : mrpt::hwdrivers::CVelodyneScanner::VLP16);
+	scanner.setCalibration(
+	    toMrpt(opts.calibration_file.empty()
+	               ? defaultVelodyneCalibration(opts.model)
+	               : loadVelodyneCalibration(opts.calibration_file)));
 	scanner.setPCAPVerbosity(false);
 	scanner.enableVerbose(false);
 	try
@@ -86,12 +101,14 @@ PcapReport convertPcap(const std::string& pcap_path, const std::string& rawlog_p
 	}
 	catch (const std::exception& e)
 	{
-		throw std::runtime_error("cannot read pcap '" + pcap_path + "': " + e.what());
+		throw std::runtime_error("cannot read pcap '" + pcap_path +
+		                         "': " + e.what());
 	}
 	const auto& lm = core::lidarModelByName(opts.model);
 	VelodyneDecodeOptions dec = opts.decode;
 	if (!(dec.min_range_m > 0)) dec.min_range_m = lm.min_range_m;
-	if (!(dec.max_range_m > 0) || dec.max_range_m >= 1e9) dec.max_range_m = lm.max_range_m;
+	if (!(dec.max_range_m > 0) || dec.max_range_m >= 1e9)
+		dec.max_range_m = lm.max_range_m;
 
 	const int64_t capture_ns = pcapFirstRecordNs(pcap_path);
 	PcapReport rep;
@@ -106,7 +123,8 @@ PcapReport convertPcap(const std::string& pcap_path, const std::string& rawlog_p
 		{
 			mrpt::obs::CObservationVelodyneScan::Ptr scan;
 			mrpt::obs::CObservationGPS::Ptr gps;
-			if (!scanner.getNextObservation(scan, gps)) break;	// end of capture
+			if (!scanner.getNextObservation(scan, gps))
+				break;  // end of capture
 			if (gps)
 			{
 				gps->sensorLabel = opts.gnss_label;
@@ -131,7 +149,8 @@ PcapReport convertPcap(const std::string& pcap_path, const std::string& rawlog_p
 			}
 			if (!scan->has_satellite_timestamp && capture_ns >= 0)
 			{
-				scan->timestamp = fromUnixNs(capture_ns + std::llround(acc_us * 1e3));
+				scan->timestamp =
+				    fromUnixNs(capture_ns + std::llround(acc_us * 1e3));
 				scan->originalReceivedTimestamp = scan->timestamp;
 				rep.clock_from_capture = true;
 			}
@@ -154,7 +173,8 @@ PcapReport convertPcap(const std::string& pcap_path, const std::string& rawlog_p
 				npts = st.points_out;
 			}
 			rep.points += npts;
-			rep.min_points = rep.revolutions ? std::min(rep.min_points, npts) : npts;
+			rep.min_points =
+			    rep.revolutions ? std::min(rep.min_points, npts) : npts;
 			rep.max_points = std::max(rep.max_points, npts);
 			rep.revolutions++;
 			if (show_progress)
@@ -163,8 +183,9 @@ PcapReport convertPcap(const std::string& pcap_path, const std::string& rawlog_p
 	}
 	catch (const std::exception& e)
 	{
-		rep.error = "revolution " + std::to_string(rep.revolutions + rep.partial_dropped) +
-					": " + e.what();
+		rep.error = "revolution " +
+		            std::to_string(rep.revolutions + rep.partial_dropped) +
+		            ": " + e.what();
 	}
 	if (show_progress) progress.finish();
 	writer.close();
@@ -177,11 +198,13 @@ void printPcapReport(const PcapReport& r, std::ostream& os)
 	   << "\n  partial revolutions dropped: " << r.partial_dropped
 	   << "\n  GPS observations: " << r.gps << "\n  points: " << r.points;
 	if (r.revolutions)
-		os << " (per revolution " << r.min_points << " .. " << r.max_points << ")";
+		os << " (per revolution " << r.min_points << " .. " << r.max_points
+		   << ")";
 	os << "\n";
 	if (r.clock_from_capture)
-		os << "  scans without GPS time are stamped from the capture clock + the "
-			  "sensor's microsecond counter\n";
+		os << "  scans without GPS time are stamped from the capture clock + "
+		      "the "
+		      "sensor's microsecond counter\n";
 	if (!r.error.empty()) os << "  STOPPED: " << r.error << "\n";
 }
 

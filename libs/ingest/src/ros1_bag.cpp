@@ -7,9 +7,9 @@
 #include <forest_slam/ingest/bag_reader.h>
 
 #include <bzlib.h>
-#include <roslz4/lz4s.h>
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
+#include <roslz4/lz4s.h>
 
 #include <cstring>
 #include <fstream>
@@ -24,7 +24,7 @@ constexpr const char* kMagic = "#ROSBAG V2.0\n";
 constexpr size_t kMagicLen = 13;
 
 TopicInfo makeTopic(const std::string& name, const std::string& type,
-					const std::string& md5)
+                    const std::string& md5)
 {
 	TopicInfo t;
 	t.name = name;
@@ -40,7 +40,7 @@ class Ros1IndexedReader : public BagReader
 {
    public:
 	Ros1IndexedReader(const std::string& path, std::unique_ptr<rosbag::Bag> bag)
-		: BagReader(path), bag_(std::move(bag))
+	    : BagReader(path), bag_(std::move(bag))
 	{
 		rosbag::View all(*bag_);
 		std::map<std::string, size_t> by_name;
@@ -50,11 +50,10 @@ class Ros1IndexedReader : public BagReader
 			{
 				const auto& t = topics_[by_name[c->topic]];
 				if (t.type != c->datatype)
-					throw BagError(
-						"bag '" + path + "': topic " + c->topic +
-							" is recorded with two types (" + t.type + " and " +
-							c->datatype + ")",
-						c->topic);
+					throw BagError("bag '" + path + "': topic " + c->topic +
+					                   " is recorded with two types (" +
+					                   t.type + " and " + c->datatype + ")",
+					               c->topic);
 				continue;
 			}
 			by_name[c->topic] = topics_.size();
@@ -88,7 +87,7 @@ class Ros1IndexedReader : public BagReader
 		if (!view_)
 		{
 			view_ = std::make_unique<rosbag::View>(
-				*bag_, rosbag::TopicQuery(selected_));
+			    *bag_, rosbag::TopicQuery(selected_));
 			it_ = view_->begin();
 		}
 		else if (it_ != view_->end())
@@ -108,11 +107,10 @@ class Ros1IndexedReader : public BagReader
 		}
 		catch (const std::exception& e)
 		{
-			throw BagError(
-				"bag '" + path_ + "': cannot read message #" +
-					std::to_string(index) + " of topic " + topic + ": " +
-					e.what(),
-				topic, static_cast<int64_t>(index));
+			throw BagError("bag '" + path_ + "': cannot read message #" +
+			                   std::to_string(index) + " of topic " + topic +
+			                   ": " + e.what(),
+			               topic, static_cast<int64_t>(index));
 		}
 		out.topic = info;
 		out.index = index;
@@ -184,7 +182,7 @@ int64_t fieldTimeNs(const Fields& f)
 
 /** One record from a byte range; false if it does not fit entirely. */
 bool takeRecord(const uint8_t* p, size_t n, size_t& pos, Fields& fields,
-				const uint8_t*& data, uint32_t& data_len)
+                const uint8_t*& data, uint32_t& data_len)
 {
 	if (n - pos < 4) return false;
 	uint32_t hl;
@@ -223,7 +221,7 @@ class Ros1SequentialReader : public BagReader
 		damage_ = scan_error_;
 		if (!damage_.empty() && !last_topic_.empty())
 			damage_ += " (last complete message: #" +
-					   std::to_string(last_index_) + " of " + last_topic_ + ")";
+			           std::to_string(last_index_) + " of " + last_topic_ + ")";
 		scan_done_ = true;
 		rewind();
 	}
@@ -253,7 +251,7 @@ class Ros1SequentialReader : public BagReader
 		}
 		if (!scan_error_.empty())
 			throw BagError("bag '" + path_ + "': " + damage_, last_topic_,
-						   static_cast<int64_t>(last_index_));
+			               static_cast<int64_t>(last_index_));
 		return false;
 	}
 
@@ -298,18 +296,19 @@ class Ros1SequentialReader : public BagReader
 		per_topic_.clear();
 	}
 
-	void registerConnection(const Fields& hdr, const uint8_t* data, uint32_t len)
+	void registerConnection(const Fields& hdr, const uint8_t* data,
+	                        uint32_t len)
 	{
 		const uint32_t conn = fieldU32(hdr, "conn");
 		if (topic_of_conn_.count(conn)) return;
 		Fields ch;
 		if (!parseFields(data, len, ch)) return;
 		const std::string topic =
-			hdr.count("topic") ? hdr.at("topic") : ch["topic"];
+		    hdr.count("topic") ? hdr.at("topic") : ch["topic"];
 		auto it = topic_by_name_.find(topic);
 		if (it == topic_by_name_.end())
 		{
-			if (scan_done_) return;	 // pass 2 knows every connection
+			if (scan_done_) return;  // pass 2 knows every connection
 			it = topic_by_name_.emplace(topic, topics_.size()).first;
 			topics_.push_back(makeTopic(topic, ch["type"], ch["md5sum"]));
 		}
@@ -321,10 +320,11 @@ class Ros1SequentialReader : public BagReader
 	{
 		if (file_pos_ == file_size_) return false;
 		uint32_t hl = 0;
-		auto fail = [&](const std::string& why) {
+		auto fail = [&](const std::string& why)
+		{
 			scan_error_ = "bag truncated or damaged at byte " +
-						  std::to_string(file_pos_) + " of " +
-						  std::to_string(file_size_) + ": " + why;
+			              std::to_string(file_pos_) + " of " +
+			              std::to_string(file_size_) + ": " + why;
 			return false;
 		};
 		if (file_size_ - file_pos_ < 4) return fail("incomplete record header");
@@ -339,7 +339,7 @@ class Ros1SequentialReader : public BagReader
 		in_.read(reinterpret_cast<char*>(&dl), 4);
 		if (dl > file_size_ - file_pos_ - 8 - hl)
 			return fail("record data cut (chunk #" +
-						std::to_string(chunk_index_) + ")");
+			            std::to_string(chunk_index_) + ")");
 		const size_t hdr_bytes = record_.size();
 		record_.resize(hdr_bytes + dl);
 		in_.read(reinterpret_cast<char*>(record_.data() + hdr_bytes), dl);
@@ -352,7 +352,8 @@ class Ros1SequentialReader : public BagReader
 
 	bool decompress(const Fields& f, const uint8_t* data, uint32_t len)
 	{
-		const std::string comp = f.count("compression") ? f.at("compression") : "none";
+		const std::string comp =
+		    f.count("compression") ? f.at("compression") : "none";
 		const uint32_t size = fieldU32(f, "size");
 		if (comp == "none")
 		{
@@ -365,16 +366,17 @@ class Ros1SequentialReader : public BagReader
 		{
 			unsigned int out = size;
 			const int rc = roslz4_buffToBuffDecompress(
-				const_cast<char*>(reinterpret_cast<const char*>(data)), len,
-				reinterpret_cast<char*>(chunk_.data()), &out);
+			    const_cast<char*>(reinterpret_cast<const char*>(data)), len,
+			    reinterpret_cast<char*>(chunk_.data()), &out);
 			return rc == ROSLZ4_OK && out == size;
 		}
 		if (comp == "bz2")
 		{
 			unsigned int out = size;
 			const int rc = BZ2_bzBuffToBuffDecompress(
-				reinterpret_cast<char*>(chunk_.data()), &out,
-				const_cast<char*>(reinterpret_cast<const char*>(data)), len, 0, 0);
+			    reinterpret_cast<char*>(chunk_.data()), &out,
+			    const_cast<char*>(reinterpret_cast<const char*>(data)), len, 0,
+			    0);
 			return rc == BZ_OK && out == size;
 		}
 		scan_error_ = "unknown chunk compression '" + comp + "'";
@@ -392,7 +394,8 @@ class Ros1SequentialReader : public BagReader
 				const uint8_t* d = nullptr;
 				uint32_t dl = 0;
 				if (chunk_pos_ < chunk_.size() &&
-					takeRecord(chunk_.data(), chunk_.size(), chunk_pos_, f, d, dl))
+				    takeRecord(chunk_.data(), chunk_.size(), chunk_pos_, f, d,
+				               dl))
 				{
 					const std::string op = f.count("op") ? f["op"] : "";
 					if (op == "\x07")
@@ -414,7 +417,7 @@ class Ros1SequentialReader : public BagReader
 				if (chunk_pos_ < chunk_.size())
 				{
 					scan_error_ = "malformed record inside chunk #" +
-								  std::to_string(chunk_index_);
+					              std::to_string(chunk_index_);
 					return false;
 				}
 				in_chunk_ = false;
@@ -431,8 +434,8 @@ class Ros1SequentialReader : public BagReader
 				{
 					if (scan_error_.empty())
 						scan_error_ = "cannot decompress chunk #" +
-									  std::to_string(chunk_index_) +
-									  " at byte " + std::to_string(file_pos_);
+						              std::to_string(chunk_index_) +
+						              " at byte " + std::to_string(file_pos_);
 					return false;
 				}
 				chunk_pos_ = 0;
@@ -455,9 +458,9 @@ std::unique_ptr<BagReader> openRos1Bag(const std::string& path)
 		f.read(magic, kMagicLen);
 		if (std::string(magic, kMagicLen) != kMagic)
 			throw BagError(
-				"'" + path +
-				"' is not a ROS 1 bag of format 2.0 (it does not start with "
-				"\"#ROSBAG V2.0\"); ROS 2 bags are folders with metadata.yaml");
+			    "'" + path +
+			    "' is not a ROS 1 bag of format 2.0 (it does not start with "
+			    "\"#ROSBAG V2.0\"); ROS 2 bags are folders with metadata.yaml");
 	}
 	auto bag = std::make_unique<rosbag::Bag>();
 	try
@@ -468,9 +471,9 @@ std::unique_ptr<BagReader> openRos1Bag(const std::string& path)
 	catch (const rosbag::BagException& e)
 	{
 		FS_LOG_WARN("bag '" << path << "' cannot be opened through its index ("
-							<< e.what()
-							<< "): reading it record by record instead "
-							   "(was the recording interrupted?)");
+		                    << e.what()
+		                    << "): reading it record by record instead "
+		                       "(was the recording interrupted?)");
 	}
 	return std::make_unique<Ros1SequentialReader>(path);
 }

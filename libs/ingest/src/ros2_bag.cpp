@@ -44,12 +44,16 @@ struct Stmt
 	}
 };
 
-std::string sqlError(sqlite3* db) { return db ? sqlite3_errmsg(db) : "?"; }
+std::string sqlError(sqlite3* db)
+{
+	return db ? sqlite3_errmsg(db) : "?";
+}
 
 /** "x_10.db3" after "x_9.db3": compare the trailing number numerically. */
 bool naturalLess(const fs::path& a, const fs::path& b)
 {
-	auto split = [](const std::string& s) {
+	auto split = [](const std::string& s)
+	{
 		size_t e = s.size();
 		size_t i = e;
 		while (i > 0 && std::isdigit(static_cast<unsigned char>(s[i - 1]))) i--;
@@ -111,11 +115,10 @@ class Ros2Reader : public BagReader
 				std::string where;
 				if (!last_topic_.empty())
 					where = " after message #" + std::to_string(last_index_) +
-							" of " + last_topic_;
-				throw BagError("bag file '" + current_file_ +
-								   "' is damaged" + where + ": " +
-								   sqlError(db_->db),
-							   last_topic_, static_cast<int64_t>(last_index_));
+					        " of " + last_topic_;
+				throw BagError("bag file '" + current_file_ + "' is damaged" +
+				                   where + ": " + sqlError(db_->db),
+				               last_topic_, static_cast<int64_t>(last_index_));
 			}
 			const int64_t tid = sqlite3_column_int64(stmt_.s, 0);
 			auto it = topic_of_id_.find(tid);
@@ -124,7 +127,8 @@ class Ros2Reader : public BagReader
 			out.topic = &t;
 			out.index = per_topic_[t.name]++;
 			out.time_ns = sqlite3_column_int64(stmt_.s, 1);
-			out.data = static_cast<const uint8_t*>(sqlite3_column_blob(stmt_.s, 2));
+			out.data =
+			    static_cast<const uint8_t*>(sqlite3_column_blob(stmt_.s, 2));
 			out.size = static_cast<size_t>(sqlite3_column_bytes(stmt_.s, 2));
 			out.wire = Wire::Cdr;
 			last_topic_ = t.name;
@@ -147,7 +151,7 @@ class Ros2Reader : public BagReader
 	Stmt stmt_;
 	std::string current_file_;
 	size_t file_idx_ = 0;
-	std::map<int64_t, size_t> topic_of_id_;	 ///< of the current file
+	std::map<int64_t, size_t> topic_of_id_;  ///< of the current file
 	std::map<std::string, uint64_t> per_topic_;
 	std::string last_topic_;
 	uint64_t last_index_ = 0, total_ = 0, consumed_ = 0;
@@ -164,34 +168,36 @@ class Ros2Reader : public BagReader
 			}
 			catch (const std::exception& e)
 			{
-				throw BagError("cannot parse '" + meta.string() + "': " + e.what());
+				throw BagError("cannot parse '" + meta.string() +
+				               "': " + e.what());
 			}
 			if (!y.has("rosbag2_bagfile_information"))
 				throw BagError("'" + meta.string() +
-							   "' has no rosbag2_bagfile_information");
+				               "' has no rosbag2_bagfile_information");
 			const auto info = y["rosbag2_bagfile_information"];
-			auto str = [&](const char* k) {
+			auto str = [&](const char* k)
+			{
 				return info.has(k) && info[k].isScalar()
-						   ? info[k].as<std::string>()
-						   : std::string();
+				           ? info[k].as<std::string>()
+				           : std::string();
 			};
 			const std::string storage = str("storage_identifier");
 			if (!storage.empty() && storage != "sqlite3")
-				throw BagError("ROS 2 bag '" + dir.string() + "' uses storage '" +
-							   storage + "'; only sqlite3 (.db3) is supported");
+				throw BagError("ROS 2 bag '" + dir.string() +
+				               "' uses storage '" + storage +
+				               "'; only sqlite3 (.db3) is supported");
 			const std::string comp = str("compression_format");
 			if (!comp.empty())
-				throw BagError("ROS 2 bag '" + dir.string() + "' is compressed (" +
-							   comp +
-							   "); decompress it first (ros2 bag convert)");
+				throw BagError("ROS 2 bag '" + dir.string() +
+				               "' is compressed (" + comp +
+				               "); decompress it first (ros2 bag convert)");
 			if (info.has("relative_file_paths"))
 				for (const auto& f : info["relative_file_paths"].asSequence())
-					files_.push_back(
-						(dir / f.as<std::string>()).string());
+					files_.push_back((dir / f.as<std::string>()).string());
 			for (const auto& f : files_)
 				if (!fs::exists(f))
-					throw BagError("ROS 2 bag '" + dir.string() + "': file '" + f +
-								   "' listed in metadata.yaml is missing");
+					throw BagError("ROS 2 bag '" + dir.string() + "': file '" +
+					               f + "' listed in metadata.yaml is missing");
 			if (!files_.empty()) return;
 		}
 		std::vector<fs::path> dbs;
@@ -207,8 +213,8 @@ class Ros2Reader : public BagReader
 		// not try to create -wal/-shm files or take locks.
 		const std::string uri = "file:" + file + "?immutable=1";
 		if (sqlite3_open_v2(uri.c_str(), &db.db,
-							SQLITE_OPEN_READONLY | SQLITE_OPEN_URI,
-							nullptr) != SQLITE_OK)
+		                    SQLITE_OPEN_READONLY | SQLITE_OPEN_URI,
+		                    nullptr) != SQLITE_OK)
 			throw BagError("cannot open '" + file + "': " + sqlError(db.db));
 	}
 
@@ -221,20 +227,23 @@ class Ros2Reader : public BagReader
 			openDb(file, db);
 			Stmt st;
 			if (sqlite3_prepare_v2(
-					db.db,
-					"SELECT t.name, t.type, t.serialization_format, "
-					"COUNT(m.id), MIN(m.timestamp), MAX(m.timestamp) FROM topics t "
-					"LEFT JOIN messages m ON m.topic_id = t.id GROUP BY t.id",
-					-1, &st.s, nullptr) != SQLITE_OK)
-				throw BagError("'" + file + "' is not a rosbag2 sqlite3 file: " +
-							   sqlError(db.db));
+			        db.db,
+			        "SELECT t.name, t.type, t.serialization_format, "
+			        "COUNT(m.id), MIN(m.timestamp), MAX(m.timestamp) FROM "
+			        "topics t "
+			        "LEFT JOIN messages m ON m.topic_id = t.id GROUP BY t.id",
+			        -1, &st.s, nullptr) != SQLITE_OK)
+				throw BagError(
+				    "'" + file +
+				    "' is not a rosbag2 sqlite3 file: " + sqlError(db.db));
 			int rc;
 			while ((rc = sqlite3_step(st.s)) == SQLITE_ROW)
 			{
-				auto text = [&](int c) {
+				auto text = [&](int c)
+				{
 					const auto* p = sqlite3_column_text(st.s, c);
 					return p ? std::string(reinterpret_cast<const char*>(p))
-							 : std::string();
+					         : std::string();
 				};
 				const std::string name = text(0);
 				auto it = by_name.find(name);
@@ -259,7 +268,7 @@ class Ros2Reader : public BagReader
 			}
 			if (rc != SQLITE_DONE)
 				throw BagError("cannot list topics of '" + file +
-							   "': " + sqlError(db.db));
+				               "': " + sqlError(db.db));
 		}
 	}
 
@@ -273,13 +282,14 @@ class Ros2Reader : public BagReader
 		{
 			Stmt st;
 			if (sqlite3_prepare_v2(db_->db, "SELECT id, name FROM topics", -1,
-								   &st.s, nullptr) != SQLITE_OK)
+			                       &st.s, nullptr) != SQLITE_OK)
 				throw BagError("cannot read topics of '" + file +
-							   "': " + sqlError(db_->db));
+				               "': " + sqlError(db_->db));
 			while (sqlite3_step(st.s) == SQLITE_ROW)
 			{
 				const auto* p = sqlite3_column_text(st.s, 1);
-				const std::string name = p ? reinterpret_cast<const char*>(p) : "";
+				const std::string name =
+				    p ? reinterpret_cast<const char*>(p) : "";
 				if (!selected_.count(name)) continue;
 				for (size_t i = 0; i < topics_.size(); i++)
 					if (topics_[i].name == name)
@@ -291,12 +301,13 @@ class Ros2Reader : public BagReader
 		for (const auto& [id, idx] : topic_of_id_)
 			ids += (ids.empty() ? "" : ",") + std::to_string(id);
 		const std::string sql =
-			"SELECT topic_id, timestamp, data FROM messages WHERE topic_id IN (" +
-			ids + ") ORDER BY timestamp, id";
+		    "SELECT topic_id, timestamp, data FROM messages WHERE topic_id IN "
+		    "(" +
+		    ids + ") ORDER BY timestamp, id";
 		if (sqlite3_prepare_v2(db_->db, sql.c_str(), -1, &stmt_.s, nullptr) !=
-			SQLITE_OK)
+		    SQLITE_OK)
 			throw BagError("cannot read messages of '" + file +
-						   "': " + sqlError(db_->db));
+			               "': " + sqlError(db_->db));
 	}
 };
 }  // namespace
@@ -324,7 +335,7 @@ std::unique_ptr<BagReader> BagReader::open(const std::string& path)
 	const fs::path p(path);
 	if (!fs::exists(p)) throw BagError("bag '" + path + "' does not exist");
 	if (fs::is_directory(p) || p.extension() == ".db3" ||
-		p.filename() == "metadata.yaml")
+	    p.filename() == "metadata.yaml")
 		return openRos2Bag(path);
 	return openRos1Bag(path);
 }

@@ -31,8 +31,8 @@ double median(std::vector<double> v)
 }
 
 /** Least-squares line y = a + b*x; false if x is constant. */
-bool fitLine(const std::vector<double>& x, const std::vector<double>& y, double& a,
-			 double& b)
+bool fitLine(const std::vector<double>& x, const std::vector<double>& y,
+             double& a, double& b)
 {
 	const size_t n = x.size();
 	if (n < 2) return false;
@@ -59,34 +59,40 @@ bool fitLine(const std::vector<double>& x, const std::vector<double>& y, double&
 
 RingOrder parseRingOrder(const std::string& s)
 {
-	for (auto r : {RingOrder::Auto, RingOrder::Native, RingOrder::ElevationAscending,
-				   RingOrder::ElevationDescending})
+	for (auto r :
+	     {RingOrder::Auto, RingOrder::Native, RingOrder::ElevationAscending,
+	      RingOrder::ElevationDescending})
 		if (s == ringOrderName(r)) return r;
-	throw std::invalid_argument(
-		"ring order '" + s +
-		"' is not one of auto, native, elevation_ascending, elevation_descending");
+	throw std::invalid_argument("ring order '" + s +
+	                            "' is not one of auto, native, "
+	                            "elevation_ascending, elevation_descending");
 }
 
 const char* ringOrderName(RingOrder r)
 {
 	switch (r)
 	{
-		case RingOrder::Auto: return "auto";
-		case RingOrder::Native: return "native";
-		case RingOrder::ElevationAscending: return "elevation_ascending";
-		case RingOrder::ElevationDescending: return "elevation_descending";
+		case RingOrder::Auto:
+			return "auto";
+		case RingOrder::Native:
+			return "native";
+		case RingOrder::ElevationAscending:
+			return "elevation_ascending";
+		case RingOrder::ElevationDescending:
+			return "elevation_descending";
 	}
 	return "?";
 }
 
 ScanOrganizer::ScanOrganizer(const OrganizerOptions& opts)
-	: opts_(opts),
-	  model_(&core::lidarModelByName(opts.lidar_model)),
-	  ring_order_(opts.ring_order)
+    : opts_(opts),
+      model_(&core::lidarModelByName(opts.lidar_model)),
+      ring_order_(opts.ring_order)
 {
 	if (!(opts_.range_resolution_m > 0))
 		throw std::invalid_argument("range_resolution_m must be > 0");
-	if (!(opts_.rate_hz > 0)) throw std::invalid_argument("rate_hz must be > 0");
+	if (!(opts_.rate_hz > 0))
+		throw std::invalid_argument("rate_hz must be > 0");
 	const size_t n = model_->rings();
 	const auto by_el = model_->rowsByElevation();
 	row_of_ring_.resize(n);
@@ -94,9 +100,14 @@ ScanOrganizer::ScanOrganizer(const OrganizerOptions& opts)
 	{
 		switch (ring_order_)
 		{
-			case RingOrder::ElevationAscending: row_of_ring_[r] = by_el[r]; break;
-			case RingOrder::ElevationDescending: row_of_ring_[r] = by_el[n - 1 - r]; break;
-			default: row_of_ring_[r] = static_cast<int>(r);
+			case RingOrder::ElevationAscending:
+				row_of_ring_[r] = by_el[r];
+				break;
+			case RingOrder::ElevationDescending:
+				row_of_ring_[r] = by_el[n - 1 - r];
+				break;
+			default:
+				row_of_ring_[r] = static_cast<int>(r);
 		}
 	}
 }
@@ -107,7 +118,8 @@ void ScanOrganizer::resolveRingOrder(const std::vector<CloudPoint>& pts)
 	std::vector<std::vector<double>> el(n);
 	for (const auto& p : pts)
 	{
-		const double r = std::sqrt(double(p.x) * p.x + double(p.y) * p.y + double(p.z) * p.z);
+		const double r = std::sqrt(double(p.x) * p.x + double(p.y) * p.y +
+		                           double(p.z) * p.z);
 		if (p.ring < n && r > 0) el[p.ring].push_back(std::asin(p.z / r));
 	}
 	std::vector<double> med(n, std::nan(""));
@@ -121,23 +133,25 @@ void ScanOrganizer::resolveRingOrder(const std::vector<CloudPoint>& pts)
 	if (present < std::min<size_t>(3, n))
 	{
 		core::logOnce(core::LogLevel::Warn, "ring-order-undecided",
-					  "too few points per ring to check the ring order against "
-					  "lidar model " + model_->name + " yet; using native order");
+		              "too few points per ring to check the ring order against "
+		              "lidar model " +
+		                  model_->name + " yet; using native order");
 		return;
 	}
 	const auto by_el = model_->rowsByElevation();
 	double best_err = 1e9;
 	RingOrder best = RingOrder::Native;
 	for (auto cand : {RingOrder::Native, RingOrder::ElevationAscending,
-					  RingOrder::ElevationDescending})
+	                  RingOrder::ElevationDescending})
 	{
 		double se = 0;
 		for (size_t r = 0; r < n; r++)
 		{
 			if (std::isnan(med[r])) continue;
 			const int row = cand == RingOrder::Native ? static_cast<int>(r)
-							: cand == RingOrder::ElevationAscending ? by_el[r]
-																	: by_el[n - 1 - r];
+			                : cand == RingOrder::ElevationAscending
+			                    ? by_el[r]
+			                    : by_el[n - 1 - r];
 			const double d = med[r] - model_->elevation_rad[row];
 			se += d * d;
 		}
@@ -153,31 +167,33 @@ void ScanOrganizer::resolveRingOrder(const std::vector<CloudPoint>& pts)
 	constexpr double kMaxRmsRad = 1.5 * M_PI / 180;
 	if (best_err > kMaxRmsRad)
 		throw std::runtime_error(
-			"the elevations of the cloud's rings do not fit lidar model " +
-			model_->name + " in any ring order (best: " + ringOrderName(best) +
-			", RMS " + std::to_string(best_err * 180 / M_PI) +
-			" deg): check lidar_model");
+		    "the elevations of the cloud's rings do not fit lidar model " +
+		    model_->name + " in any ring order (best: " + ringOrderName(best) +
+		    ", RMS " + std::to_string(best_err * 180 / M_PI) +
+		    " deg): check lidar_model");
 	ring_order_ = best;
 	for (size_t r = 0; r < n; r++)
 		row_of_ring_[r] = best == RingOrder::Native ? static_cast<int>(r)
-						  : best == RingOrder::ElevationAscending ? by_el[r]
-																  : by_el[n - 1 - r];
+		                  : best == RingOrder::ElevationAscending
+		                      ? by_el[r]
+		                      : by_el[n - 1 - r];
 	FS_LOG_INFO("ring order of the cloud vs lidar model "
-				<< model_->name << ": " << ringOrderName(best) << " (elevation RMS "
-				<< best_err * 180 / M_PI << " deg)");
+	            << model_->name << ": " << ringOrderName(best)
+	            << " (elevation RMS " << best_err * 180 / M_PI << " deg)");
 }
 
-void ScanOrganizer::organize(const std::vector<CloudPoint>& pts, int64_t stamp_ns,
-							 bool has_time, mrpt::obs::CObservationRotatingScan& out,
-							 OrganizeStats* stats)
+void ScanOrganizer::organize(const std::vector<CloudPoint>& pts,
+                             int64_t stamp_ns, bool has_time,
+                             mrpt::obs::CObservationRotatingScan& out,
+                             OrganizeStats* stats)
 {
 	const size_t rings = model_->rings();
 	for (size_t i = 0; i < pts.size(); i++)
 		if (pts[i].ring >= rings)
 			throw std::runtime_error(
-				"point " + std::to_string(i) + " has ring " +
-				std::to_string(pts[i].ring) + " but lidar model " + model_->name +
-				" has " + std::to_string(rings) + " rings");
+			    "point " + std::to_string(i) + " has ring " +
+			    std::to_string(pts[i].ring) + " but lidar model " +
+			    model_->name + " has " + std::to_string(rings) + " rings");
 	if (ring_order_ == RingOrder::Auto && !pts.empty()) resolveRingOrder(pts);
 
 	OrganizeStats st;
@@ -185,8 +201,10 @@ void ScanOrganizer::organize(const std::vector<CloudPoint>& pts, int64_t stamp_n
 	out.rowCount = static_cast<uint16_t>(rings);
 	out.lidarModel = model_->name;
 	out.rangeResolution = opts_.range_resolution_m;
-	out.minRange = opts_.min_range_m > 0 ? opts_.min_range_m : model_->min_range_m;
-	out.maxRange = opts_.max_range_m > 0 ? opts_.max_range_m : model_->max_range_m;
+	out.minRange =
+	    opts_.min_range_m > 0 ? opts_.min_range_m : model_->min_range_m;
+	out.maxRange =
+	    opts_.max_range_m > 0 ? opts_.max_range_m : model_->max_range_m;
 	out.rangeOtherLayers.clear();
 	out.has_satellite_timestamp = false;
 	if (pts.empty())
@@ -208,9 +226,11 @@ void ScanOrganizer::organize(const std::vector<CloudPoint>& pts, int64_t stamp_n
 	std::iota(order.begin(), order.end(), 0);
 	if (has_time)
 		std::stable_sort(order.begin(), order.end(),
-						 [&](size_t a, size_t b) { return pts[a].t_s < pts[b].t_s; });
+		                 [&](size_t a, size_t b)
+		                 { return pts[a].t_s < pts[b].t_s; });
 	std::vector<double> az(pts.size());
-	for (size_t i = 0; i < pts.size(); i++) az[i] = std::atan2(pts[i].y, pts[i].x);
+	for (size_t i = 0; i < pts.size(); i++)
+		az[i] = std::atan2(pts[i].y, pts[i].x);
 
 	// Per ring: signed azimuth steps between consecutive returns.
 	std::vector<int64_t> prev(rings, -1);
@@ -225,7 +245,8 @@ void ScanOrganizer::organize(const std::vector<CloudPoint>& pts, int64_t stamp_n
 			const double d = wrapPi(az[k] - az[prev[r]]);
 			total += d;
 			ring_sum[r] += d;
-			if (std::abs(d) > 1e-6 && std::abs(d) < 0.1) small_steps.push_back(std::abs(d));
+			if (std::abs(d) > 1e-6 && std::abs(d) < 0.1)
+				small_steps.push_back(std::abs(d));
 		}
 		else
 			first_t[r] = pts[k].t_s;
@@ -254,7 +275,8 @@ void ScanOrganizer::organize(const std::vector<CloudPoint>& pts, int64_t stamp_n
 			}
 		double omega = dt > 0 ? du / dt : 0;
 		if (!(du > 0.5) || !(omega > 0)) omega = kTwoPi * opts_.rate_hz;
-		for (size_t k = 0; k < pts.size(); k++) predicted[k] = omega * (pts[k].t_s - t0);
+		for (size_t k = 0; k < pts.size(); k++)
+			predicted[k] = omega * (pts[k].t_s - t0);
 	}
 	else
 	{
@@ -264,7 +286,7 @@ void ScanOrganizer::organize(const std::vector<CloudPoint>& pts, int64_t stamp_n
 		{
 			const uint16_t r = pts[k].ring;
 			run[r] = prev[r] < 0 ? wrapPi(s * (az[k] - az0))
-								 : run[r] + s * wrapPi(az[k] - az[prev[r]]);
+			                     : run[r] + s * wrapPi(az[k] - az[prev[r]]);
 			predicted[k] = run[r];
 			prev[r] = static_cast<int64_t>(k);
 		}
@@ -282,7 +304,8 @@ void ScanOrganizer::organize(const std::vector<CloudPoint>& pts, int64_t stamp_n
 	// refined by least squares so that a cloud made from a range image
 	// reproduces that image's grid.
 	std::vector<double> col(pts.size());
-	for (size_t k = 0; k < pts.size(); k++) col[k] = std::round((u[k] - u_min) / step);
+	for (size_t k = 0; k < pts.size(); k++)
+		col[k] = std::round((u[k] - u_min) / step);
 	double a = u_min, b = step;
 	if (fitLine(col, u, a, b) && std::abs(b - step) < 0.2 * step)
 		step = b;
@@ -298,10 +321,11 @@ void ScanOrganizer::organize(const std::vector<CloudPoint>& pts, int64_t stamp_n
 	a += cmin * step;
 	const double ncols = cmax - cmin + 1;
 	if (ncols > 65535)
-		throw std::runtime_error(
-			"the cloud spans " + std::to_string(ncols) +
-			" columns of " + std::to_string(step * 180 / M_PI) +
-			" deg: more than a range image can hold (is it several revolutions?)");
+		throw std::runtime_error("the cloud spans " + std::to_string(ncols) +
+		                         " columns of " +
+		                         std::to_string(step * 180 / M_PI) +
+		                         " deg: more than a range image can hold (is "
+		                         "it several revolutions?)");
 	const int n = static_cast<int>(ncols);
 	for (auto& c : col) c -= cmin;
 
@@ -332,7 +356,8 @@ void ScanOrganizer::organize(const std::vector<CloudPoint>& pts, int64_t stamp_n
 	for (size_t k : order)
 	{
 		const auto& p = pts[k];
-		const double r = std::sqrt(double(p.x) * p.x + double(p.y) * p.y + double(p.z) * p.z);
+		const double r = std::sqrt(double(p.x) * p.x + double(p.y) * p.y +
+		                           double(p.z) * p.z);
 		const double raw = std::round(r / opts_.range_resolution_m);
 		if (r < out.minRange || r > out.maxRange || raw < 1 || raw > max_raw)
 		{
@@ -357,12 +382,12 @@ void ScanOrganizer::organize(const std::vector<CloudPoint>& pts, int64_t stamp_n
 			c = c2;
 		}
 		out.rangeImage(row, c) = static_cast<uint16_t>(raw);
-		out.intensityImage(row, c) =
-			static_cast<uint8_t>(std::clamp(std::round(double(p.intensity)), 0.0, 255.0));
+		out.intensityImage(row, c) = static_cast<uint8_t>(
+		    std::clamp(std::round(double(p.intensity)), 0.0, 255.0));
 		st.points_out++;
 		if (has_time)
-			st.max_time_error_s =
-				std::max(st.max_time_error_s, std::abs(p.t_s - (tau0 + dt_col * c)));
+			st.max_time_error_s = std::max(
+			    st.max_time_error_s, std::abs(p.t_s - (tau0 + dt_col * c)));
 	}
 	if (stats) *stats = st;
 }

@@ -18,14 +18,14 @@ void StaticTransforms::add(const TfMsg& msg)
 		mrpt::math::CQuaternionDouble quat(q[3], q[0], q[1], q[2]);
 		quat.normalize();
 		const mrpt::poses::CPose3DQuat pq(t.translation[0], t.translation[1],
-										  t.translation[2], quat);
+		                                  t.translation[2], quat);
 		parent_[canonicalFrame(t.child_frame_id)] = {
-			canonicalFrame(t.header.frame_id), mrpt::poses::CPose3D(pq)};
+		    canonicalFrame(t.header.frame_id), mrpt::poses::CPose3D(pq)};
 	}
 }
 
 bool StaticTransforms::lookup(const std::string& frame, const std::string& base,
-							  mrpt::poses::CPose3D& out) const
+                              mrpt::poses::CPose3D& out) const
 {
 	const std::string b = canonicalFrame(base);
 	std::string f = canonicalFrame(frame);

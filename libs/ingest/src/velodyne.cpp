@@ -24,14 +24,18 @@ constexpr uint8_t kRetDual = 0x39;
 constexpr double kUsPerHour = 3600e6;
 
 static_assert(sizeof(mrpt::obs::CObservationVelodyneScan::TVelodyneRawPacket) ==
-				  kVelodynePacketBytes,
-			  "MRPT's raw packet struct must be the 1206-byte UDP payload");
+                  kVelodynePacketBytes,
+              "MRPT's raw packet struct must be the 1206-byte UDP payload");
 
-uint16_t le16(const uint8_t* p) { return static_cast<uint16_t>(p[0] | (p[1] << 8)); }
+uint16_t le16(const uint8_t* p)
+{
+	return static_cast<uint16_t>(p[0] | (p[1] << 8));
+}
 uint32_t le32(const uint8_t* p)
 {
 	return static_cast<uint32_t>(p[0]) | (static_cast<uint32_t>(p[1]) << 8) |
-		   (static_cast<uint32_t>(p[2]) << 16) | (static_cast<uint32_t>(p[3]) << 24);
+	       (static_cast<uint32_t>(p[2]) << 16) |
+	       (static_cast<uint32_t>(p[3]) << 24);
 }
 
 std::string trim(const std::string& s)
@@ -53,7 +57,8 @@ double toDouble(const std::string& v, const std::string& where)
 	}
 	catch (const std::exception&)
 	{
-		throw std::runtime_error(where + ": expected a number, got '" + v + "'");
+		throw std::runtime_error(where + ": expected a number, got '" + v +
+		                         "'");
 	}
 }
 
@@ -63,7 +68,8 @@ VelodyneCalib parseRosYaml(const std::string& text, const std::string& path)
 	c.source = path;
 	const auto lasers_at = text.find("lasers:");
 	if (lasers_at == std::string::npos)
-		throw std::runtime_error("calibration '" + path + "' has no 'lasers:' list");
+		throw std::runtime_error("calibration '" + path +
+		                         "' has no 'lasers:' list");
 	// Top-level scalars (no indentation) anywhere in the file.
 	std::istringstream lines(text);
 	std::string line;
@@ -71,16 +77,18 @@ VelodyneCalib parseRosYaml(const std::string& text, const std::string& path)
 	while (std::getline(lines, line))
 	{
 		if (line.empty() || std::isspace(static_cast<unsigned char>(line[0])) ||
-			line[0] == '-')
+		    line[0] == '-')
 			continue;
 		const auto colon = line.find(':');
 		if (colon == std::string::npos) continue;
 		const std::string key = trim(line.substr(0, colon));
 		const std::string val = trim(line.substr(colon + 1));
 		if (key == "distance_resolution")
-			c.distance_resolution_m = toDouble(val, path + ": distance_resolution");
+			c.distance_resolution_m =
+			    toDouble(val, path + ": distance_resolution");
 		else if (key == "num_lasers")
-			expected = static_cast<size_t>(toDouble(val, path + ": num_lasers"));
+			expected =
+			    static_cast<size_t>(toDouble(val, path + ": num_lasers"));
 	}
 	// The list runs from "lasers:" to the next unindented key.
 	size_t end = text.size();
@@ -88,7 +96,8 @@ VelodyneCalib parseRosYaml(const std::string& text, const std::string& path)
 		std::regex top_key("\n[A-Za-z_][A-Za-z0-9_]*\\s*:");
 		std::smatch m;
 		const std::string rest = text.substr(lasers_at + 7);
-		if (std::regex_search(rest, m, top_key)) end = lasers_at + 7 + m.position(0);
+		if (std::regex_search(rest, m, top_key))
+			end = lasers_at + 7 + m.position(0);
 	}
 	std::string list = text.substr(lasers_at + 7, end - lasers_at - 7);
 	// Items start with "-" (block or flow style); inside an item, braces
@@ -108,48 +117,57 @@ VelodyneCalib parseRosYaml(const std::string& text, const std::string& path)
 			if (ch == '{' || ch == '}' || ch == ',') ch = '\n';
 		std::map<std::string, double> kv;
 		std::istringstream is(item);
-		const std::string where = path + ": laser item #" + std::to_string(item_no);
+		const std::string where =
+		    path + ": laser item #" + std::to_string(item_no);
 		while (std::getline(is, line))
 		{
 			const auto colon = line.find(':');
 			if (colon == std::string::npos)
 			{
 				if (!trim(line).empty())
-					throw std::runtime_error(where + ": cannot parse '" + trim(line) + "'");
+					throw std::runtime_error(where + ": cannot parse '" +
+					                         trim(line) + "'");
 				continue;
 			}
 			kv[trim(line.substr(0, colon))] =
-				toDouble(trim(line.substr(colon + 1)), where + " " + trim(line.substr(0, colon)));
+			    toDouble(trim(line.substr(colon + 1)),
+			             where + " " + trim(line.substr(0, colon)));
 		}
 		if (!kv.count("laser_id") || !kv.count("vert_correction"))
-			throw std::runtime_error(where + ": needs laser_id and vert_correction");
+			throw std::runtime_error(where +
+			                         ": needs laser_id and vert_correction");
 		VelodyneLaserCalib l;
 		l.vert_rad = kv["vert_correction"];
 		l.rot_rad = kv.count("rot_correction") ? kv["rot_correction"] : 0;
 		l.dist_m = kv.count("dist_correction") ? kv["dist_correction"] : 0;
-		l.vert_offset_m = kv.count("vert_offset_correction") ? kv["vert_offset_correction"] : 0;
-		l.horiz_offset_m =
-			kv.count("horiz_offset_correction") ? kv["horiz_offset_correction"] : 0;
+		l.vert_offset_m = kv.count("vert_offset_correction")
+		                      ? kv["vert_offset_correction"]
+		                      : 0;
+		l.horiz_offset_m = kv.count("horiz_offset_correction")
+		                       ? kv["horiz_offset_correction"]
+		                       : 0;
 		const int id = static_cast<int>(kv["laser_id"]);
 		if (id < 0 || by_id.count(id))
-			throw std::runtime_error(where + ": bad or repeated laser_id " + std::to_string(id));
+			throw std::runtime_error(where + ": bad or repeated laser_id " +
+			                         std::to_string(id));
 		by_id[id] = l;
 		item_no++;
 	}
 	for (int i = 0; i < static_cast<int>(by_id.size()); i++)
 	{
 		if (!by_id.count(i))
-			throw std::runtime_error("calibration '" + path + "': laser ids are not 0.." +
-									 std::to_string(by_id.size() - 1) + " (missing " +
-									 std::to_string(i) + ")");
+			throw std::runtime_error("calibration '" + path +
+			                         "': laser ids are not 0.." +
+			                         std::to_string(by_id.size() - 1) +
+			                         " (missing " + std::to_string(i) + ")");
 		c.lasers.push_back(by_id[i]);
 	}
 	if (c.lasers.empty())
 		throw std::runtime_error("calibration '" + path + "' lists no lasers");
 	if (expected && expected != c.lasers.size())
 		throw std::runtime_error("calibration '" + path + "' says num_lasers " +
-								 std::to_string(expected) + " but lists " +
-								 std::to_string(c.lasers.size()));
+		                         std::to_string(expected) + " but lists " +
+		                         std::to_string(c.lasers.size()));
 	return c;
 }
 
@@ -158,16 +176,19 @@ VelodyneCalib parseRosYaml(const std::string& text, const std::string& path)
 VelodyneCalib loadVelodyneCalibration(const std::string& path)
 {
 	std::ifstream f(path);
-	if (!f) throw std::runtime_error("cannot open Velodyne calibration '" + path + "'");
+	if (!f)
+		throw std::runtime_error("cannot open Velodyne calibration '" + path +
+		                         "'");
 	std::stringstream ss;
 	ss << f.rdbuf();
 	const std::string text = ss.str();
 	if (text.find("<boost_serialization") != std::string::npos ||
-		text.find("<DB>") != std::string::npos)
+	    text.find("<DB>") != std::string::npos)
 	{
 		mrpt::obs::VelodyneCalibration m;
 		if (!m.loadFromXMLFile(path) || m.empty())
-			throw std::runtime_error("cannot parse Velodyne XML calibration '" + path + "'");
+			throw std::runtime_error("cannot parse Velodyne XML calibration '" +
+			                         path + "'");
 		auto c = fromMrpt(m);
 		c.source = path;
 		return c;
@@ -181,11 +202,14 @@ VelodyneCalib defaultVelodyneCalibration(const std::string& model)
 	const std::string name = m ? m->name : model;
 	if (name != "VLP16" && name != "HDL32")
 		throw std::invalid_argument(
-			"MRPT has no default calibration for Velodyne model '" + model +
-			"': give calibration_file (the ROS driver's YAML or the sensor's XML)");
-	auto c = fromMrpt(mrpt::obs::VelodyneCalibration::LoadDefaultCalibration(name));
+		    "MRPT has no default calibration for Velodyne model '" + model +
+		    "': give calibration_file (the ROS driver's YAML or the sensor's "
+		    "XML)");
+	auto c =
+	    fromMrpt(mrpt::obs::VelodyneCalibration::LoadDefaultCalibration(name));
 	if (c.lasers.empty())
-		throw std::runtime_error("MRPT's default calibration for " + name + " is empty");
+		throw std::runtime_error("MRPT's default calibration for " + name +
+		                         " is empty");
 	c.source = "MRPT default " + name;
 	return c;
 }
@@ -233,11 +257,23 @@ std::string lidarModelForVelodyneId(uint8_t id)
 	switch (id)
 	{
 		case kVlp16:
-		case kVlp16HiRes: return "VLP16";
-		case kHdl32e: return "HDL32";
-		case kVlp32c: return "VLP32C";
-		default: return "";
+		case kVlp16HiRes:
+			return "VLP16";
+		case kHdl32e:
+			return "HDL32";
+		case kVlp32c:
+			return "VLP32C";
+		default:
+			return "";
 	}
+}
+
+uint8_t resolveVelodyneModel(uint8_t model_byte, size_t calibration_lasers)
+{
+	if (!lidarModelForVelodyneId(model_byte).empty()) return model_byte;
+	if (calibration_lasers == 16) return kVlp16;
+	if (calibration_lasers == 32) return kHdl32e;
+	return 0;
 }
 
 DualReturn parseDualReturn(const std::string& s)
@@ -246,35 +282,41 @@ DualReturn parseDualReturn(const std::string& s)
 	if (s == "last") return DualReturn::Last;
 	if (s == "both") return DualReturn::Both;
 	throw std::invalid_argument("dual return '" + s +
-								"' is not one of strongest, last, both");
+	                            "' is not one of strongest, last, both");
 }
 
 void decodeVelodynePackets(const std::vector<const uint8_t*>& packets,
-						   const VelodyneCalib& calib, const VelodyneDecodeOptions& opts,
-						   std::vector<VelodynePoint>& out)
+                           const VelodyneCalib& calib,
+                           const VelodyneDecodeOptions& opts,
+                           std::vector<VelodynePoint>& out)
 {
 	out.clear();
 	if (packets.empty()) return;
-	const uint8_t model = packets[0][1205];
+	const uint8_t model_byte = packets[0][1205];
+	const uint8_t model = resolveVelodyneModel(model_byte, calib.lasers.size());
 	const std::string model_name = lidarModelForVelodyneId(model);
 	if (model_name.empty())
-		throw std::runtime_error("Velodyne packet 0 has model byte 0x" +
-								 [&] {
-									 std::ostringstream o;
-									 o << std::hex << int(model);
-									 return o.str();
-								 }() +
-								 ": only VLP-16 (0x22/0x24), HDL-32E (0x21) and "
-								 "VLP-32C (0x28) are supported");
+		throw std::runtime_error(
+		    "Velodyne packet 0 has model byte 0x" +
+		    [&]
+		    {
+			    std::ostringstream o;
+			    o << std::hex << int(model_byte);
+			    return o.str();
+		    }() +
+		    ": only VLP-16 (0x22/0x24), HDL-32E (0x21) and "
+		    "VLP-32C (0x28) are supported");
 	const bool vlp16 = model == kVlp16 || model == kVlp16HiRes;
 	const size_t n_lasers = vlp16 ? 16 : 32;
 	if (calib.lasers.size() != n_lasers)
 		throw std::runtime_error("calibration '" + calib.source + "' has " +
-								 std::to_string(calib.lasers.size()) + " lasers but the " +
-								 model_name + " packets need " + std::to_string(n_lasers));
-	const double res = calib.distance_resolution_m > 0 ? calib.distance_resolution_m
-						: model == kVlp32c					? 0.004
-															: 0.002;
+		                         std::to_string(calib.lasers.size()) +
+		                         " lasers but the " + model_name +
+		                         " packets need " + std::to_string(n_lasers));
+	const double res = calib.distance_resolution_m > 0
+	                       ? calib.distance_resolution_m
+	                   : model == kVlp32c ? 0.004
+	                                      : 0.002;
 	std::vector<double> cos_v(n_lasers), sin_v(n_lasers);
 	for (size_t i = 0; i < n_lasers; i++)
 	{
@@ -288,11 +330,12 @@ void decodeVelodynePackets(const std::vector<const uint8_t*>& packets,
 	for (size_t pi = 0; pi < packets.size(); pi++)
 	{
 		const uint8_t* pkt = packets[pi];
-		if (pkt[1205] != model)
+		if (pkt[1205] != model_byte)
 			throw std::runtime_error("Velodyne packet " + std::to_string(pi) +
-									 " has another model byte than packet 0");
+			                         " has another model byte than packet 0");
 		const uint32_t us = le32(pkt + 1200);
-		t_pkt_us += std::fmod(static_cast<double>(us) - prev_us + kUsPerHour, kUsPerHour);
+		t_pkt_us += std::fmod(static_cast<double>(us) - prev_us + kUsPerHour,
+		                      kUsPerHour);
 		prev_us = us;
 		const bool dual = pkt[1204] == kRetDual;
 		const int per_az = dual ? 2 : 1;  // blocks sharing one azimuth
@@ -300,18 +343,21 @@ void decodeVelodynePackets(const std::vector<const uint8_t*>& packets,
 		for (int b = 0; b < kBlocks; b++)
 		{
 			const uint8_t* blk = pkt + b * 100;
-			if (le16(blk) != kUpperBank) continue;	// HDL-64 lower bank, garbage
+			if (le16(blk) != kUpperBank)
+				continue;  // HDL-64 lower bank, garbage
 			if (dual)
 			{
 				const bool strongest_block = (b & 1) != 0;
-				if (opts.dual == DualReturn::Strongest && !strongest_block) continue;
+				if (opts.dual == DualReturn::Strongest && !strongest_block)
+					continue;
 				if (opts.dual == DualReturn::Last && strongest_block) continue;
 			}
 			const uint16_t az = le16(blk + 2);
 			float az_diff = last_diff;
 			if (b + per_az < kBlocks)
 			{
-				az_diff = static_cast<float>((36000 + le16(pkt + (b + per_az) * 100 + 2) - az) % 36000);
+				az_diff = static_cast<float>(
+				    (36000 + le16(pkt + (b + per_az) * 100 + 2) - az) % 36000);
 				last_diff = az_diff;
 			}
 			const int firing_block = dual ? b / 2 : b;
@@ -352,13 +398,19 @@ void decodeVelodynePackets(const std::vector<const uint8_t*>& packets,
 				}
 				const double t_us = t_pkt_us + firing_block * cycle_us + off_us;
 				const uint16_t az_c = static_cast<uint16_t>(
-					static_cast<int>(std::round(az + az_diff * off_us / cycle_us)) % 36000);
+				    static_cast<int>(
+				        std::round(az + az_diff * off_us / cycle_us)) %
+				    36000);
 				const double a = az_c * 0.01 * kDeg - cal.rot_rad;
-				const double xy = d * cos_v[laser] - cal.vert_offset_m * sin_v[laser];
+				const double xy =
+				    d * cos_v[laser] - cal.vert_offset_m * sin_v[laser];
 				VelodynePoint p;
-				p.x = static_cast<float>(xy * std::cos(a) + cal.horiz_offset_m * std::sin(a));
-				p.y = static_cast<float>(-xy * std::sin(a) + cal.horiz_offset_m * std::cos(a));
-				p.z = static_cast<float>(d * sin_v[laser] + cal.vert_offset_m * cos_v[laser]);
+				p.x = static_cast<float>(xy * std::cos(a) +
+				                         cal.horiz_offset_m * std::sin(a));
+				p.y = static_cast<float>(-xy * std::sin(a) +
+				                         cal.horiz_offset_m * std::cos(a));
+				p.z = static_cast<float>(d * sin_v[laser] +
+				                         cal.vert_offset_m * cos_v[laser]);
 				p.distance_m = static_cast<float>(d);
 				p.intensity = ret[2];
 				p.laser_id = static_cast<uint16_t>(laser);
@@ -374,7 +426,8 @@ void decodeVelodynePackets(const std::vector<const uint8_t*>& packets,
 }
 
 void decodeVelodyneScan(const mrpt::obs::CObservationVelodyneScan& scan,
-						const VelodyneDecodeOptions& opts, std::vector<VelodynePoint>& out)
+                        const VelodyneDecodeOptions& opts,
+                        std::vector<VelodynePoint>& out)
 {
 	out.clear();
 	if (scan.scan_packets.empty()) return;
@@ -386,17 +439,20 @@ void decodeVelodyneScan(const mrpt::obs::CObservationVelodyneScan& scan,
 		calib = fromMrpt(scan.calibration);
 	else
 		calib = defaultVelodyneCalibration(
-			lidarModelForVelodyneId(scan.scan_packets[0].velodyne_model_ID));
+		    lidarModelForVelodyneId(scan.scan_packets[0].velodyne_model_ID));
 	decodeVelodynePackets(pkts, calib, opts, out);
 }
 
 void velodyneToRotatingScan(const mrpt::obs::CObservationVelodyneScan& in,
-							mrpt::obs::CObservationRotatingScan& out,
-							const VelodyneDecodeOptions& opts, OrganizeStats* stats)
+                            mrpt::obs::CObservationRotatingScan& out,
+                            const VelodyneDecodeOptions& opts,
+                            OrganizeStats* stats)
 {
 	if (in.scan_packets.empty())
 		throw std::runtime_error("CObservationVelodyneScan has no packets");
-	const uint8_t id = in.scan_packets[0].velodyne_model_ID;
+	const uint8_t id =
+	    resolveVelodyneModel(in.scan_packets[0].velodyne_model_ID,
+	                         in.calibration.laser_corrections.size());
 	std::vector<VelodynePoint> pts;
 	decodeVelodyneScan(in, opts, pts);
 	std::vector<CloudPoint> cloud(pts.size());
@@ -414,7 +470,7 @@ void velodyneToRotatingScan(const mrpt::obs::CObservationVelodyneScan& in,
 	oo.lidar_model = lidarModelForVelodyneId(id);
 	oo.ring_order = RingOrder::Native;
 	oo.range_resolution_m = id == kVlp32c ? 0.004 : 0.002;
-	oo.rotation_sign = -1;	// Velodynes spin clockwise seen from above
+	oo.rotation_sign = -1;  // Velodynes spin clockwise seen from above
 	ScanOrganizer org(oo);
 	const mrpt::system::TTimeStamp ts = in.timestamp;
 	org.organize(cloud, toUnixNs(ts), true, out, stats);
@@ -425,19 +481,22 @@ void velodyneToRotatingScan(const mrpt::obs::CObservationVelodyneScan& in,
 }
 
 void velodyneScanFromMsg(const VelodyneScanMsg& msg, const VelodyneCalib& calib,
-						 mrpt::obs::CObservationVelodyneScan& out)
+                         mrpt::obs::CObservationVelodyneScan& out)
 {
 	out.scan_packets.resize(msg.packets.size());
 	for (size_t i = 0; i < msg.packets.size(); i++)
-		std::memcpy(&out.scan_packets[i], msg.packets[i].data.data(), kVelodynePacketBytes);
+		std::memcpy(&out.scan_packets[i], msg.packets[i].data.data(),
+		            kVelodynePacketBytes);
 	out.calibration = toMrpt(calib);
-	const int64_t t0 = msg.packets.empty() ? msg.header.stamp_ns : msg.packets[0].stamp_ns;
+	const int64_t t0 =
+	    msg.packets.empty() ? msg.header.stamp_ns : msg.packets[0].stamp_ns;
 	out.timestamp = fromUnixNs(t0);
 	out.has_satellite_timestamp = false;
 	out.point_cloud.clear();
 	if (!msg.packets.empty())
 		if (const auto* m = core::findLidarModel(
-				lidarModelForVelodyneId(msg.packets[0].data[1205])))
+		        lidarModelForVelodyneId(resolveVelodyneModel(
+		            msg.packets[0].data[1205], calib.lasers.size()))))
 		{
 			out.minRange = m->min_range_m;
 			out.maxRange = m->max_range_m;

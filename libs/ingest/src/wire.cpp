@@ -5,7 +5,7 @@
 namespace forest_slam::ingest
 {
 WireReader::WireReader(const uint8_t* data, size_t size, Wire wire)
-	: data_(data), size_(size), wire_(wire)
+    : data_(data), size_(size), wire_(wire)
 {
 	if (wire_ != Wire::Cdr) return;
 	need(4, "CDR encapsulation header");
@@ -13,11 +13,10 @@ WireReader::WireReader(const uint8_t* data, size_t size, Wire wire)
 	// parameter-list and XCDR2 encodings are not what rosbag2 writes for
 	// plain ROS messages.
 	if (data_[0] != 0x00 || (data_[1] != 0x00 && data_[1] != 0x01))
-		throw DecodeError(
-			"unsupported CDR encapsulation 0x" +
-			std::to_string(static_cast<int>(data_[0])) + "/" +
-			std::to_string(static_cast<int>(data_[1])) +
-			" (expected plain CDR little or big endian)");
+		throw DecodeError("unsupported CDR encapsulation 0x" +
+		                  std::to_string(static_cast<int>(data_[0])) + "/" +
+		                  std::to_string(static_cast<int>(data_[1])) +
+		                  " (expected plain CDR little or big endian)");
 	swap_ = data_[1] == 0x00;
 	pos_ = origin_ = 4;
 }
@@ -25,10 +24,10 @@ WireReader::WireReader(const uint8_t* data, size_t size, Wire wire)
 void WireReader::need(size_t n, const char* what) const
 {
 	if (n > size_ - pos_)
-		throw DecodeError(
-			std::string("message truncated reading ") + what + ": needs " +
-			std::to_string(n) + " bytes at offset " + std::to_string(pos_) +
-			", message has " + std::to_string(size_));
+		throw DecodeError(std::string("message truncated reading ") + what +
+		                  ": needs " + std::to_string(n) + " bytes at offset " +
+		                  std::to_string(pos_) + ", message has " +
+		                  std::to_string(size_));
 }
 
 void WireReader::align(size_t n)
@@ -56,12 +55,30 @@ T WireReader::primitive(const char* what)
 	return v;
 }
 
-uint8_t WireReader::u8() { return primitive<uint8_t>("uint8"); }
-uint16_t WireReader::u16() { return primitive<uint16_t>("uint16"); }
-uint32_t WireReader::u32() { return primitive<uint32_t>("uint32"); }
-uint64_t WireReader::u64() { return primitive<uint64_t>("uint64"); }
-float WireReader::f32() { return primitive<float>("float32"); }
-double WireReader::f64() { return primitive<double>("float64"); }
+uint8_t WireReader::u8()
+{
+	return primitive<uint8_t>("uint8");
+}
+uint16_t WireReader::u16()
+{
+	return primitive<uint16_t>("uint16");
+}
+uint32_t WireReader::u32()
+{
+	return primitive<uint32_t>("uint32");
+}
+uint64_t WireReader::u64()
+{
+	return primitive<uint64_t>("uint64");
+}
+float WireReader::f32()
+{
+	return primitive<float>("float32");
+}
+double WireReader::f64()
+{
+	return primitive<double>("float64");
+}
 
 std::string WireReader::string()
 {
@@ -90,10 +107,10 @@ uint32_t WireReader::arrayLength(size_t min_element_bytes)
 {
 	const uint32_t n = u32();
 	if (min_element_bytes > 0 && n > remaining() / min_element_bytes)
-		throw DecodeError(
-			"array length " + std::to_string(n) + " at offset " +
-			std::to_string(pos_ - 4) + " exceeds the " +
-			std::to_string(remaining()) + " bytes left in the message");
+		throw DecodeError("array length " + std::to_string(n) + " at offset " +
+		                  std::to_string(pos_ - 4) + " exceeds the " +
+		                  std::to_string(remaining()) +
+		                  " bytes left in the message");
 	return n;
 }
 

@@ -19,7 +19,7 @@ namespace forest_slam::ingest
 /** Topic, label, frame and fallback extrinsics of one sensor. */
 struct SensorTopicOptions : public mrpt::config::CLoadableOptions
 {
-	std::string topic;	///< empty: sensor not converted
+	std::string topic;  ///< empty: sensor not converted
 	std::string sensor_label;
 	/** Frame looked up in /tf_static; empty = the messages' header.frame_id. */
 	std::string frame_id;
@@ -28,9 +28,9 @@ struct SensorTopicOptions : public mrpt::config::CLoadableOptions
 	double pose_yaw_deg = 0, pose_pitch_deg = 0, pose_roll_deg = 0;
 
 	void loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
-							const std::string& s) override;
+	                        const std::string& s) override;
 	void saveToConfigFile(mrpt::config::CConfigFileBase& c,
-						  const std::string& s) const override;
+	                      const std::string& s) const override;
 };
 
 struct LidarTopicOptions : public SensorTopicOptions
@@ -41,13 +41,14 @@ struct LidarTopicOptions : public SensorTopicOptions
 	/** PointCloud2 output: auto (RotatingScan if the cloud has rings, else
 	 * PointCloud), CObservationRotatingScan, CObservationPointCloud. */
 	std::string cloud_output = "auto";
-	std::string ring_field = "auto", time_field = "auto", intensity_field = "auto";
+	std::string ring_field = "auto", time_field = "auto",
+	            intensity_field = "auto";
 	std::string time_encoding = "auto";
 	std::string ring_order = "auto";
 	double range_resolution_m = 0.002;
 	/** Revolutions per second, used only for clouds without per-point time. */
 	double rate_hz = 10.0;
-	std::string rotation = "auto";	///< auto, cw, ccw
+	std::string rotation = "auto";            ///< auto, cw, ccw
 	double min_range_m = 0, max_range_m = 0;  ///< 0: lidar model's
 	/** velodyne_msgs/VelodyneScan: calibration (ROS YAML or Velodyne XML);
 	 * empty = MRPT's default for the model. */
@@ -58,9 +59,9 @@ struct LidarTopicOptions : public SensorTopicOptions
 	std::string dual_return = "strongest";
 
 	void loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
-							const std::string& s) override;
+	                        const std::string& s) override;
 	void saveToConfigFile(mrpt::config::CConfigFileBase& c,
-						  const std::string& s) const override;
+	                      const std::string& s) const override;
 };
 
 struct Bag2RawlogOptions : public mrpt::config::CLoadableOptions
@@ -69,7 +70,7 @@ struct Bag2RawlogOptions : public mrpt::config::CLoadableOptions
 	std::string base_frame = "base_link";
 	bool use_tf_static = true;
 	std::string tf_static_topic = "/tf_static";
-	int compress_level = 1;	 ///< gzip level of the output rawlog (0..9)
+	int compress_level = 1;  ///< gzip level of the output rawlog (0..9)
 	LidarTopicOptions lidar;
 	SensorTopicOptions imu, gnss;
 
@@ -77,9 +78,9 @@ struct Bag2RawlogOptions : public mrpt::config::CLoadableOptions
 	/** Sections [bag2rawlog], [bag2rawlog_lidar], [bag2rawlog_imu],
 	 * [bag2rawlog_gnss]; `s` is ignored. Throws core::ConfigError. */
 	void loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
-							const std::string& s = "") override;
+	                        const std::string& s = "") override;
 	void saveToConfigFile(mrpt::config::CConfigFileBase& c,
-						  const std::string& s = "") const override;
+	                      const std::string& s = "") const override;
 };
 
 struct TopicReport
@@ -89,7 +90,7 @@ struct TopicReport
 	uint64_t messages_in = 0, observations_out = 0;
 	std::map<std::string, uint64_t> skipped;  ///< reason -> count
 	std::string pose_source;  ///< "/tf_static (velodyne -> base_link)" / "INI"
-	std::string detail;	 ///< e.g. the PointCloud2 layout found
+	std::string detail;       ///< e.g. the PointCloud2 layout found
 };
 
 struct ConversionReport
@@ -113,8 +114,10 @@ class ConversionSetupError : public std::runtime_error
  * ConversionSetupError for configuration/bag mismatches found before
  * writing; problems in the middle of the bag end the conversion with
  * report.error set and the output committed. */
-ConversionReport convertBag(const std::string& bag_path, const std::string& rawlog_path,
-							const Bag2RawlogOptions& opts, bool show_progress = true);
+ConversionReport convertBag(const std::string& bag_path,
+                            const std::string& rawlog_path,
+                            const Bag2RawlogOptions& opts,
+                            bool show_progress = true);
 
 /** `--list`: topics, types, counts, rates. */
 void printTopicList(const BagReader& bag, std::ostream& os);

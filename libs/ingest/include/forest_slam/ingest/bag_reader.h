@@ -18,10 +18,10 @@ class BagError : public std::runtime_error
 {
    public:
 	BagError(const std::string& msg, std::string topic = "",
-			 int64_t message_index = -1)
-		: std::runtime_error(msg),
-		  topic(std::move(topic)),
-		  message_index(message_index)
+	         int64_t message_index = -1)
+	    : std::runtime_error(msg),
+	      topic(std::move(topic)),
+	      message_index(message_index)
 	{
 	}
 	std::string topic;
@@ -39,10 +39,10 @@ struct TopicInfo
 	std::string name;
 	std::string type;  ///< as recorded, e.g. "sensor_msgs/msg/Imu"
 	MsgKind kind = MsgKind::Unknown;
-	std::string md5;  ///< ROS 1 only
-	std::string serialization = "ros1";	 ///< "ros1", "cdr", ...
+	std::string md5;                     ///< ROS 1 only
+	std::string serialization = "ros1";  ///< "ros1", "cdr", ...
 	uint64_t count = 0;
-	int64_t first_ns = 0, last_ns = 0;	///< record (receive) times
+	int64_t first_ns = 0, last_ns = 0;  ///< record (receive) times
 	/** Mean message rate [Hz] over the topic's time span (0 if < 2). */
 	double rateHz() const;
 };
@@ -50,9 +50,9 @@ struct TopicInfo
 struct BagMessage
 {
 	const TopicInfo* topic = nullptr;
-	uint64_t index = 0;	 ///< 0-based within its topic
-	int64_t time_ns = 0;  ///< record time (not the header stamp)
-	const uint8_t* data = nullptr;	///< valid until the next call to next()
+	uint64_t index = 0;             ///< 0-based within its topic
+	int64_t time_ns = 0;            ///< record time (not the header stamp)
+	const uint8_t* data = nullptr;  ///< valid until the next call to next()
 	size_t size = 0;
 	Wire wire = Wire::Ros1;
 };

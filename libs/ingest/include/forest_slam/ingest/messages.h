@@ -54,7 +54,7 @@ struct ImuMsg
 struct NavSatFixMsg
 {
 	MsgHeader header;
-	int8_t status = -1;	 ///< -1 no fix, 0 fix, 1 SBAS, 2 GBAS
+	int8_t status = -1;  ///< -1 no fix, 0 fix, 1 SBAS, 2 GBAS
 	uint16_t service = 0;
 	double latitude_deg = 0, longitude_deg = 0, altitude_m = 0;
 	std::array<double, 9> position_covariance{};  ///< ENU, m^2, row-major

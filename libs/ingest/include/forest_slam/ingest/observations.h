@@ -5,13 +5,13 @@
 // CObservationGPS in MRPT 2.5.8 has no covariance field, so a fix is stored
 // as three standard messages: NMEA GGA (position, fix quality, UTC time),
 // NovAtel BESTPOS (solution status, 1-sigma east/north/up, as forest-sim
-// writes it) and TOPCON PZS (position and the full ENU position covariance, float, in the
-// upper-left 3x3 of its 4x4 matrix; NavSatFix's frame and units). PZS is
-// the only MRPT 2.5.8 GNSS message with a covariance that survives a rawlog
-// round trip (NovAtel INSCOVS and the generic frames fail to deserialize).
-// navSatCovariance() reads it back. The NavSatFix status maps one-to-one to
-// the GGA fix quality: -1 -> 0 (invalid), 0 -> 1 (GPS), 1 (SBAS) -> 2
-// (DGPS), 2 (GBAS) -> 4 (RTK); gpsStatusFromGga() inverts it.
+// writes it) and TOPCON PZS (position and the full ENU position covariance,
+// float, in the upper-left 3x3 of its 4x4 matrix; NavSatFix's frame and units).
+// PZS is the only MRPT 2.5.8 GNSS message with a covariance that survives a
+// rawlog round trip (NovAtel INSCOVS and the generic frames fail to
+// deserialize). navSatCovariance() reads it back. The NavSatFix status maps
+// one-to-one to the GGA fix quality: -1 -> 0 (invalid), 0 -> 1 (GPS), 1 (SBAS)
+// -> 2 (DGPS), 2 (GBAS) -> 4 (RTK); gpsStatusFromGga() inverts it.
 #include <forest_slam/ingest/messages.h>
 
 #include <mrpt/obs/CObservationGPS.h>
@@ -30,7 +30,8 @@ void gpsFromMsg(const NavSatFixMsg& m, mrpt::obs::CObservationGPS& out);
 
 /** The ENU position covariance [m^2, row-major, float precision] stored by
  * gpsFromMsg(); false if the fix had none. */
-bool navSatCovariance(const mrpt::obs::CObservationGPS& obs, std::array<double, 9>& cov);
+bool navSatCovariance(const mrpt::obs::CObservationGPS& obs,
+                      std::array<double, 9>& cov);
 
 uint8_t ggaQualityFromStatus(int8_t status);
 int8_t gpsStatusFromGga(uint8_t quality);

@@ -36,14 +36,15 @@ struct PcapReport
 	uint64_t revolutions = 0, partial_dropped = 0, gps = 0;
 	uint64_t points = 0;  ///< decoded points written (RotatingScan output)
 	uint64_t min_points = 0, max_points = 0;  ///< per revolution
-	bool clock_from_capture = false;  ///< no GPS time: pcap clock used
-	std::string error;	///< empty on success; output holds what came before
+	bool clock_from_capture = false;          ///< no GPS time: pcap clock used
+	std::string error;  ///< empty on success; output holds what came before
 };
 
 /** Throws std::runtime_error if the pcap cannot be opened or the options are
  * wrong (nothing written); later problems set report.error. */
-PcapReport convertPcap(const std::string& pcap_path, const std::string& rawlog_path,
-					   const PcapOptions& opts, bool show_progress = true);
+PcapReport convertPcap(const std::string& pcap_path,
+                       const std::string& rawlog_path, const PcapOptions& opts,
+                       bool show_progress = true);
 void printPcapReport(const PcapReport& r, std::ostream& os);
 
 }  // namespace forest_slam::ingest

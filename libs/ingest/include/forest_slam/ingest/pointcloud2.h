@@ -61,19 +61,19 @@ struct CloudLayout
  * (x/y/z missing, field beyond point_step, data shorter than width*height*
  * point_step, unsupported datatype). */
 CloudLayout analyzeCloudLayout(const PointCloud2Msg& msg,
-							   const CloudLayoutOptions& opts);
+                               const CloudLayoutOptions& opts);
 
 struct CloudPoint
 {
 	float x = 0, y = 0, z = 0;
 	float intensity = 0;
 	uint16_t ring = 0;
-	double t_s = 0;	 ///< relative to the message header stamp
+	double t_s = 0;  ///< relative to the message header stamp
 };
 
 /** Reads every finite, non-zero point (drivers mark missing returns with NaN
  * or 0,0,0). Returns the number of points dropped as invalid. */
 size_t extractCloudPoints(const PointCloud2Msg& msg, const CloudLayout& layout,
-						  std::vector<CloudPoint>& out);
+                          std::vector<CloudPoint>& out);
 
 }  // namespace forest_slam::ingest

@@ -25,12 +25,12 @@ namespace forest_slam::ingest
 /** How the cloud's ring numbers map to the model's rows (laser ids). */
 enum class RingOrder
 {
-	Auto,  ///< decided once from the measured elevation of each ring
-	Native,	 ///< ring = laser id (MRPT, Ouster)
-	ElevationAscending,	 ///< ring 0 = lowest beam (ROS velodyne driver)
-	ElevationDescending	 ///< ring 0 = highest beam
+	Auto,    ///< decided once from the measured elevation of each ring
+	Native,  ///< ring = laser id (MRPT, Ouster)
+	ElevationAscending,  ///< ring 0 = lowest beam (ROS velodyne driver)
+	ElevationDescending  ///< ring 0 = highest beam
 };
-RingOrder parseRingOrder(const std::string& s);	 ///< throws invalid_argument
+RingOrder parseRingOrder(const std::string& s);  ///< throws invalid_argument
 const char* ringOrderName(RingOrder r);
 
 struct OrganizerOptions
@@ -52,7 +52,7 @@ struct OrganizeStats
 {
 	size_t points_in = 0, points_out = 0;
 	size_t out_of_range = 0;  ///< beyond [min,max] range or uint16 range
-	size_t collisions = 0;	///< second return for an occupied cell (dropped)
+	size_t collisions = 0;    ///< second return for an occupied cell (dropped)
 	double max_time_error_s = 0;  ///< |point time - column time|
 };
 
@@ -71,8 +71,8 @@ class ScanOrganizer
 	 * std::runtime_error if rings exceed the model or (Auto) the measured
 	 * elevations do not fit the model in any order. */
 	void organize(const std::vector<CloudPoint>& pts, int64_t stamp_ns,
-				  bool has_time, mrpt::obs::CObservationRotatingScan& out,
-				  OrganizeStats* stats = nullptr);
+	              bool has_time, mrpt::obs::CObservationRotatingScan& out,
+	              OrganizeStats* stats = nullptr);
 
    private:
 	OrganizerOptions opts_;

@@ -15,13 +15,14 @@ inline mrpt::Clock::time_point fromUnixNs(int64_t ns)
 	// Round to the nearest tick (floor division for negative values is not
 	// needed: bags start after 1970).
 	return mrpt::Clock::time_point(
-		mrpt::Clock::duration((ns + 50) / 100 + kUnixEpochIn100ns));
+	    mrpt::Clock::duration((ns + 50) / 100 + kUnixEpochIn100ns));
 }
 
 inline int64_t toUnixNs(mrpt::Clock::time_point t)
 {
-	return (static_cast<int64_t>(t.time_since_epoch().count()) - kUnixEpochIn100ns) *
-		   100;
+	return (static_cast<int64_t>(t.time_since_epoch().count()) -
+	        kUnixEpochIn100ns) *
+	       100;
 }
 
 }  // namespace forest_slam::ingest

@@ -21,7 +21,7 @@ class StaticTransforms
 	/** Pose of `frame` in `base` (frames compared without a leading '/').
 	 * False if the chain from `frame` does not reach `base`. */
 	bool lookup(const std::string& frame, const std::string& base,
-				mrpt::poses::CPose3D& out) const;
+	            mrpt::poses::CPose3D& out) const;
 	/** "a -> b, c -> b" for messages. */
 	std::string describe() const;
 

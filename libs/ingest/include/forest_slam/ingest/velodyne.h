@@ -31,17 +31,17 @@ namespace forest_slam::ingest
 struct VelodyneLaserCalib
 {
 	double vert_rad = 0;  ///< elevation
-	double rot_rad = 0;	 ///< azimuth correction (subtracted)
-	double dist_m = 0;	///< added to every non-zero range
+	double rot_rad = 0;   ///< azimuth correction (subtracted)
+	double dist_m = 0;    ///< added to every non-zero range
 	double vert_offset_m = 0, horiz_offset_m = 0;
 };
 
 struct VelodyneCalib
 {
-	std::vector<VelodyneLaserCalib> lasers;	 ///< index = laser id
+	std::vector<VelodyneLaserCalib> lasers;  ///< index = laser id
 	/** 0 = the model's (2 mm; 4 mm for the VLP-32C). */
 	double distance_resolution_m = 0;
-	std::string source;	 ///< file name or "MRPT default VLP16"...
+	std::string source;  ///< file name or "MRPT default VLP16"...
 };
 
 /** ROS calibration YAML (velodyne_pointcloud / nebula: "lasers:" list with
@@ -66,6 +66,10 @@ enum VelodyneModelId : uint8_t
 };
 /** core::LidarModel name for a model id byte; "" if unsupported. */
 std::string lidarModelForVelodyneId(uint8_t model_id);
+/** The model to decode with: the packets' model byte, or, when it is not a
+ * known one (early VLP-16/HDL-32E firmware leaves it 0), the model a 16- or
+ * 32-laser calibration implies. 0 if neither tells. */
+uint8_t resolveVelodyneModel(uint8_t model_byte, size_t calibration_lasers);
 
 enum class DualReturn
 {
@@ -77,22 +81,22 @@ DualReturn parseDualReturn(const std::string& s);  ///< throws invalid_argument
 
 struct VelodyneDecodeOptions
 {
-	double min_range_m = 0.0;	 ///< exclusive, as the ROS drivers
-	double max_range_m = 1e9;	 ///< exclusive
+	double min_range_m = 0.0;  ///< exclusive, as the ROS drivers
+	double max_range_m = 1e9;  ///< exclusive
 	DualReturn dual = DualReturn::Strongest;
 };
 
 struct VelodynePoint
 {
-	float x = 0, y = 0, z = 0;	///< sensor frame, ROS axes
+	float x = 0, y = 0, z = 0;  ///< sensor frame, ROS axes
 	float distance_m = 0;
 	uint8_t intensity = 0;
 	uint16_t laser_id = 0;
-	uint16_t azimuth_cdeg = 0;	///< Velodyne azimuth, 0.01 deg, clockwise
-	uint8_t block = 0;	///< data block within its packet (0..11)
-	uint8_t return_index = 0;  ///< position within the block (0..31)
-	uint32_t packet = 0;  ///< packet index within the scan
-	double t_s = 0;	 ///< after the first firing of the first packet
+	uint16_t azimuth_cdeg = 0;  ///< Velodyne azimuth, 0.01 deg, clockwise
+	uint8_t block = 0;          ///< data block within its packet (0..11)
+	uint8_t return_index = 0;   ///< position within the block (0..31)
+	uint32_t packet = 0;        ///< packet index within the scan
+	double t_s = 0;             ///< after the first firing of the first packet
 };
 
 /** Decodes packets (raw 1206-byte payloads) in order. Times come from each
@@ -100,27 +104,27 @@ struct VelodynePoint
  * offset within the packet. Throws std::runtime_error naming the packet
  * index for unsupported models or a calibration with too few lasers. */
 void decodeVelodynePackets(const std::vector<const uint8_t*>& packets,
-						   const VelodyneCalib& calib,
-						   const VelodyneDecodeOptions& opts,
-						   std::vector<VelodynePoint>& out);
+                           const VelodyneCalib& calib,
+                           const VelodyneDecodeOptions& opts,
+                           std::vector<VelodynePoint>& out);
 /** Same, for the packets held by an MRPT observation (its calibration is used
  * if not empty, else MRPT's default for the model). */
 void decodeVelodyneScan(const mrpt::obs::CObservationVelodyneScan& scan,
-						const VelodyneDecodeOptions& opts,
-						std::vector<VelodynePoint>& out);
+                        const VelodyneDecodeOptions& opts,
+                        std::vector<VelodynePoint>& out);
 
 /** A CObservationRotatingScan as core::unpackRotatingScan() expects it:
  * rows = laser id, lidarModel from the packets' model byte, points placed by
  * their true azimuth. Copies timestamp, sensorLabel, sensorPose. This is the
  * conversion to use instead of MRPT's fromVelodyne(). */
 void velodyneToRotatingScan(const mrpt::obs::CObservationVelodyneScan& in,
-							mrpt::obs::CObservationRotatingScan& out,
-							const VelodyneDecodeOptions& opts = {},
-							OrganizeStats* stats = nullptr);
+                            mrpt::obs::CObservationRotatingScan& out,
+                            const VelodyneDecodeOptions& opts = {},
+                            OrganizeStats* stats = nullptr);
 
 /** Builds an MRPT observation from a ROS velodyne_msgs/VelodyneScan.
  * timestamp = first packet's stamp. */
 void velodyneScanFromMsg(const VelodyneScanMsg& msg, const VelodyneCalib& calib,
-						 mrpt::obs::CObservationVelodyneScan& out);
+                         mrpt::obs::CObservationVelodyneScan& out);
 
 }  // namespace forest_slam::ingest

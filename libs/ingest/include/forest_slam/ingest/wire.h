@@ -60,9 +60,9 @@ class WireReader
 	const uint8_t* data_;
 	size_t size_;
 	size_t pos_ = 0;
-	size_t origin_ = 0;	 ///< CDR alignment origin (after encapsulation)
+	size_t origin_ = 0;  ///< CDR alignment origin (after encapsulation)
 	Wire wire_;
-	bool swap_ = false;	 ///< big-endian CDR on a little-endian host
+	bool swap_ = false;  ///< big-endian CDR on a little-endian host
 	void need(size_t n, const char* what) const;
 	template <typename T>
 	T primitive(const char* what);
