@@ -21,12 +21,14 @@ TEST(LidarOdometry, FollowsConstantVelocityMotion)
 		const double err = (t - w.positionAt(w.t0_s + k * w.period_s)).norm();
 		worst = std::max(worst, err);
 		if (getenv("FS_DEBUG"))
+		{
 			std::printf("k=%d edges=%zu planar=%zu reg=%d em=%zu pm=%zu it=%d rmse=%.3f t=(%.3f %.3f %.3f) ev0=%.2g ev5=%.2g err=%.3f\n",
 						k, st.edges, st.planar, st.registered, st.registration.edge_matches,
 						st.registration.planar_matches, st.registration.iterations,
 						st.registration.rmse_m, t.x(), t.y(), t.z(),
 						st.registration.information_eigenvalues[0],
 						st.registration.information_eigenvalues[5], err);
+		}
 		if (k > 0) EXPECT_TRUE(st.registered) << "scan " << k;
 	}
 	// 3.8 m travelled in a sparse box (flat walls, five poles): a few

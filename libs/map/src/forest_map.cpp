@@ -6,7 +6,6 @@
 #include <mrpt/maps/CPointsMap.h>
 #include <mrpt/obs/CObservationPointCloud.h>
 #include <mrpt/obs/CObservationRotatingScan.h>
-#include <mrpt/obs/CObservationVelodyneScan.h>
 #include <mrpt/opengl/CPointCloud.h>
 #include <mrpt/opengl/CSetOfObjects.h>
 #include <mrpt/poses/CPose3D.h>
@@ -59,15 +58,10 @@ bool observationPoints(const mrpt::obs::CObservation& obs,
 {
 	using namespace mrpt::obs;
 	rings.clear();
-	const CObservationRotatingScan* rot =
-		dynamic_cast<const CObservationRotatingScan*>(&obs);
-	CObservationRotatingScan converted;
-	if (!rot)
-		if (auto* v = dynamic_cast<const CObservationVelodyneScan*>(&obs))
-		{
-			converted.fromVelodyne(*v);
-			rot = &converted;
-		}
+	// Raw CObservationVelodyneScan packets are not accepted here: MRPT
+	// 2.5.8's fromVelodyne() drops half of the returns; convert them with
+	// ingest::velodyneToRotatingScan() first (the pipeline does).
+	const auto* rot = dynamic_cast<const CObservationRotatingScan*>(&obs);
 	if (rot)
 	{
 		const auto* model = core::findLidarModel(rot->lidarModel);
@@ -368,8 +362,7 @@ bool CForestMap::internal_canComputeObservationLikelihood(
 {
 	using namespace mrpt::obs;
 	return dynamic_cast<const CObservationRotatingScan*>(&obs) ||
-		   dynamic_cast<const CObservationPointCloud*>(&obs) ||
-		   dynamic_cast<const CObservationVelodyneScan*>(&obs);
+		   dynamic_cast<const CObservationPointCloud*>(&obs);
 }
 
 double CForestMap::internal_computeObservationLikelihood(

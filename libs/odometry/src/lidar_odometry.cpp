@@ -12,11 +12,16 @@ void OdometryOptions::loadFromConfigFile(
 	const mrpt::config::CConfigFileBase& c, const std::string& s)
 {
 	FS_LOAD(c, s, local_map_radius_m);
+	FS_LOAD(c, s, target_rebuild_distance_m);
+	FS_LOAD(c, s, target_rebuild_scans);
 	FS_LOAD(c, s, min_matches);
 	FS_LOAD(c, s, degeneracy_ratio);
 	const std::string where = core::configOrigin(c) + ": [" + s + "] ";
 	if (!(local_map_radius_m > 0))
 		throw core::ConfigError(where + "local_map_radius_m must be > 0");
+	if (!(target_rebuild_distance_m >= 0) || target_rebuild_scans < 1)
+		throw core::ConfigError(
+			where + "target_rebuild_distance_m must be >= 0, target_rebuild_scans >= 1");
 	if (min_matches < 6) throw core::ConfigError(where + "min_matches must be >= 6");
 }
 
@@ -24,6 +29,8 @@ void OdometryOptions::saveToConfigFile(
 	mrpt::config::CConfigFileBase& c, const std::string& s) const
 {
 	c.write(s, "local_map_radius_m", local_map_radius_m);
+	c.write(s, "target_rebuild_distance_m", target_rebuild_distance_m);
+	c.write(s, "target_rebuild_scans", target_rebuild_scans);
 	c.write(s, "min_matches", min_matches);
 	c.write(s, "degeneracy_ratio", degeneracy_ratio);
 }
@@ -124,11 +131,18 @@ void LidarOdometry::insert(const Prepared& s, const Eigen::Isometry3d& pose)
 RegistrationResult LidarOdometry::registerToMap(
 	const Prepared& s, const Eigen::Isometry3d& predicted)
 {
-	std::vector<Eigen::Vector3f> me, mp;
-	map_.collectNear(predicted.translation(), cfg_.odometry.local_map_radius_m, me, mp);
-	FeatureTarget target;
-	target.build(me, mp);
-	return registerFeatures(target, s.edges, s.planar, predicted, cfg_.registration, &predicted);
+	const auto& o = cfg_.odometry;
+	if (scans_since_target_ < 0 || scans_since_target_ >= o.target_rebuild_scans ||
+		(predicted.translation() - target_centre_).norm() > o.target_rebuild_distance_m)
+	{
+		std::vector<Eigen::Vector3f> me, mp;
+		map_.collectNear(predicted.translation(), o.local_map_radius_m, me, mp);
+		target_.build(me, mp);
+		target_centre_ = predicted.translation();
+		scans_since_target_ = 0;
+	}
+	scans_since_target_++;
+	return registerFeatures(target_, s.edges, s.planar, predicted, cfg_.registration, &predicted);
 }
 
 OdometryStep LidarOdometry::processScan(const core::ScanPoints& scan)
@@ -174,6 +188,7 @@ OdometryStep LidarOdometry::processScan(const core::ScanPoints& scan)
 				ScanTiming ignored;
 				map_.clear();
 				insert(prepare(*first_scan_, motion0, last_pose_, ignored), last_pose_);
+				scans_since_target_ = -1;  // the map changed: rebuild
 				step.registration = registerToMap(cur, predicted);
 			}
 		}

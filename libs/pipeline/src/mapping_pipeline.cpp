@@ -1,4 +1,5 @@
 #include <forest_slam/core/log.h>
+#include <forest_slam/ingest/velodyne.h>
 #include <forest_slam/core/scan_points.h>
 #include <forest_slam/pipeline/mapping_pipeline.h>
 
@@ -45,9 +46,10 @@ void MappingPipeline::process(const mrpt::obs::CObservation::Ptr& obs)
 			processScan(*rot);
 		else if (auto vel = std::dynamic_pointer_cast<mrpt::obs::CObservationVelodyneScan>(obs))
 		{
+			// Our decoder, not MRPT 2.5.8's fromVelodyne(), which drops half
+			// of the returns (see doc/ingest.md).
 			mrpt::obs::CObservationRotatingScan converted;
-			converted.fromVelodyne(*vel);
-			converted.sensorLabel = vel->sensorLabel;
+			ingest::velodyneToRotatingScan(*vel, converted);
 			processScan(converted);
 		}
 		else

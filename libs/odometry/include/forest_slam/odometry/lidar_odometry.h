@@ -20,6 +20,11 @@ namespace forest_slam::odometry
 struct OdometryOptions : public mrpt::config::CLoadableOptions
 {
 	double local_map_radius_m = 40.0;  ///< submaps used for scan-to-map
+	/** The local map's search structure is rebuilt when the sensor moved
+	 * this far from where it was built, or after this many scans: building
+	 * k-d trees over the local map is the costliest step of a scan. */
+	double target_rebuild_distance_m = 0.5;
+	int target_rebuild_scans = 5;
 	/** Fewer matched features than this: the registration is not trusted
 	 * and the motion model carries the pose (degenerate place). */
 	int min_matches = 50;
@@ -86,6 +91,9 @@ class LidarOdometry
 	RegistrationResult registerToMap(const Prepared& s, const Eigen::Isometry3d& predicted);
 
 	OdometryConfig cfg_;
+	FeatureTarget target_;
+	Eigen::Vector3d target_centre_ = Eigen::Vector3d::Zero();
+	int scans_since_target_ = -1;  ///< -1: no target yet
 	std::optional<core::ScanPoints> first_scan_;  ///< until the motion is known
 	map::CForestMap& map_;
 	ground::GroundLattice lattice_;
