@@ -53,23 +53,6 @@ Eigen::Vector2d GridField::gradient(double x, double y) const
 	return {gx, gy};
 }
 
-double GridField::lipschitz() const
-{
-	double best = 0;
-	for (int iy = 0; iy + 1 < ny_; iy++)
-		for (int ix = 0; ix + 1 < nx_; ix++)
-		{
-			const double h00 = at(ix, iy), h10 = at(ix + 1, iy);
-			const double h01 = at(ix, iy + 1), h11 = at(ix + 1, iy + 1);
-			const double gx =
-			    std::max(std::abs(h10 - h00), std::abs(h11 - h01));
-			const double gy =
-			    std::max(std::abs(h01 - h00), std::abs(h11 - h10));
-			best = std::max(best, std::hypot(gx, gy));
-		}
-	return best * inv_step_;
-}
-
 double GridField::minValue() const
 {
 	return *std::min_element(v_.begin(), v_.end());
@@ -173,7 +156,7 @@ Terrain::Terrain(const TerrainOptions& o, double xmin, double ymin, double xmax,
 	const double rs = o.roughness_step_m;
 	const int rnx = static_cast<int>(std::ceil((xmax - xmin) / rs)) + 1;
 	const int rny = static_cast<int>(std::ceil((ymax - ymin) / rs)) + 1;
-	rough_ = GridField(xmin, ymin, rs, rnx, rny);
+	GridField rough(xmin, ymin, rs, rnx, rny);  // local: folded into full_
 	if (o.roughness_m > 0)
 	{
 		GridField white(xmin, ymin, rs, rnx, rny);
@@ -181,8 +164,8 @@ Terrain::Terrain(const TerrainOptions& o, double xmin, double ymin, double xmax,
 			for (int ix = 0; ix < white.nx(); ix++)
 				white.at(ix, iy) = rng.normal();
 		const double k[3] = {0.25, 0.5, 0.25};
-		for (int iy = 0; iy < rough_.ny(); iy++)
-			for (int ix = 0; ix < rough_.nx(); ix++)
+		for (int iy = 0; iy < rough.ny(); iy++)
+			for (int ix = 0; ix < rough.nx(); ix++)
 			{
 				double s = 0;
 				for (int dy = -1; dy <= 1; dy++)
@@ -193,48 +176,49 @@ Terrain::Terrain(const TerrainOptions& o, double xmin, double ymin, double xmax,
 						s += k[dx + 1] * k[dy + 1] * white.at(jx, jy);
 					}
 				// std of the smoothed white noise is sqrt(sum k^2) = 0.375
-				rough_.at(ix, iy) =
+				rough.at(ix, iy) =
 				    s / 0.375 * o.roughness_m *
-				    roughness_factor(rough_.xOf(ix), rough_.yOf(iy));
+				    roughness_factor(rough.xOf(ix), rough.yOf(iy));
 			}
 	}
-	rough_amp_ =
-	    std::max(std::abs(rough_.minValue()), std::abs(rough_.maxValue()));
-	lip_smooth_ = smooth_.lipschitz() * 1.0001 + 1e-9;
-	lip_full_ = lip_smooth_ + rough_.lipschitz() * 1.0001;
-	max_h_ = smooth_.maxValue() + rough_amp_;
+	// One grid for the full surface: half the look-ups per height query,
+	// and the same surface (a bilinear cell restricted to an aligned sub-cell
+	// is bilinear on it).
+	full_ = GridField(xmin, ymin, rs, rnx, rny);
+	for (int iy = 0; iy < full_.ny(); iy++)
+		for (int ix = 0; ix < full_.nx(); ix++)
+			full_.at(ix, iy) =
+			    smooth_.value(full_.xOf(ix), full_.yOf(iy)) + rough.at(ix, iy);
+	max_h_ = full_.maxValue() + 1e-6;
 
-	// Upper bound per smooth cell: highest corner + highest micro relief
-	// node touching the cell (bilinear interpolants stay below their nodes).
+	// Upper bound per smooth cell: the highest full-surface node touching
+	// the cell (a bilinear interpolant stays below its nodes).
 	const int ncx = smooth_.nx() - 1, ncy = smooth_.ny() - 1;
 	cell_max_.assign(static_cast<size_t>(ncx) * ncy, 0.f);
-	const double ratio = smooth_.step() / rough_.step();
+	const double ratio = smooth_.step() / full_.step();
 	for (int iy = 0; iy < ncy; iy++)
 		for (int ix = 0; ix < ncx; ix++)
 		{
-			double hmax =
-			    std::max({smooth_.at(ix, iy), smooth_.at(ix + 1, iy),
-			              smooth_.at(ix, iy + 1), smooth_.at(ix + 1, iy + 1)});
-			double rmax = -1e9;
+			double hmax = -1e9;
 			const int rx0 =
 			    std::max(0, static_cast<int>(std::floor(ix * ratio)));
 			const int rx1 = std::min(
-			    rough_.nx() - 1, static_cast<int>(std::ceil((ix + 1) * ratio)));
+			    full_.nx() - 1, static_cast<int>(std::ceil((ix + 1) * ratio)));
 			const int ry0 =
 			    std::max(0, static_cast<int>(std::floor(iy * ratio)));
 			const int ry1 = std::min(
-			    rough_.ny() - 1, static_cast<int>(std::ceil((iy + 1) * ratio)));
+			    full_.ny() - 1, static_cast<int>(std::ceil((iy + 1) * ratio)));
 			for (int ry = ry0; ry <= ry1; ry++)
 				for (int rx = rx0; rx <= rx1; rx++)
-					rmax = std::max(rmax, rough_.at(rx, ry));
+					hmax = std::max(hmax, full_.at(rx, ry));
 			cell_max_[static_cast<size_t>(iy) * ncx + ix] =
-			    static_cast<float>(hmax + rmax + 1e-4);
+			    static_cast<float>(hmax + 1e-4);
 		}
 }
 
 double Terrain::minHeightIn(double x0, double y0, double x1, double y1) const
 {
-	// Each bilinear field stays above the smallest node touching the box.
+	// A bilinear field stays above the smallest node touching the box.
 	auto nodeMin = [&](const GridField& f)
 	{
 		const int ix0 =
@@ -254,58 +238,104 @@ double Terrain::minHeightIn(double x0, double y0, double x1, double y1) const
 			for (int ix = ix0; ix <= ix1; ix++) m = std::min(m, f.at(ix, iy));
 		return m;
 	};
-	return nodeMin(smooth_) + nodeMin(rough_);
+	return nodeMin(full_);
 }
 
 Eigen::Vector3d Terrain::normal(double x, double y) const
 {
-	const Eigen::Vector2d g = smooth_.gradient(x, y) + rough_.gradient(x, y);
+	const Eigen::Vector2d g = full_.gradient(x, y);
 	return Eigen::Vector3d(-g.x(), -g.y(), 1.0).normalized();
 }
 
 bool Terrain::marchCell(const Eigen::Vector3d& o, const Eigen::Vector3d& d,
                         double t0, double t1, double& t_hit) const
 {
-	// Per unit of ray length the gap to a surface with slope <= L shrinks by
-	// at most L*c - d.z: a step of gap/(L*c - d.z) cannot jump over it.
-	const double c = std::hypot(d.x(), d.y());
-	const double denom = lip_full_ * c - d.z();
-	auto gapAt = [&](double t)
+	// Walk the fine cells of full_ crossed over [t0, t1]; in each, the
+	// surface is a bilinear patch, so z(t) - h(t) is a quadratic in t whose
+	// smallest root in the cell is the exact intersection.
+	const double step = full_.step(), inv = 1.0 / step;
+	const double x0 = full_.x0(), y0 = full_.y0();
+	const int nfx = full_.nx() - 1, nfy = full_.ny() - 1;
+	const Eigen::Vector3d p0 = o + t0 * d;
+	int ix = std::clamp(static_cast<int>(std::floor((p0.x() - x0) * inv)), 0,
+	                    nfx - 1);
+	int iy = std::clamp(static_cast<int>(std::floor((p0.y() - y0) * inv)), 0,
+	                    nfy - 1);
+	const int sx = d.x() > 0 ? 1 : -1, sy = d.y() > 0 ? 1 : -1;
+	const double inf = std::numeric_limits<double>::infinity();
+	const double dtx = std::abs(d.x()) > 1e-15 ? step / std::abs(d.x()) : inf;
+	const double dty = std::abs(d.y()) > 1e-15 ? step / std::abs(d.y()) : inf;
+	double tmx = std::abs(d.x()) > 1e-15
+	                 ? (x0 + (ix + (sx > 0)) * step - o.x()) / d.x()
+	                 : inf;
+	double tmy = std::abs(d.y()) > 1e-15
+	                 ? (y0 + (iy + (sy > 0)) * step - o.y()) / d.y()
+	                 : inf;
+	double ta = t0;
+	// Patch coordinates u, v in [0,1] are linear in t.
+	const double du = d.x() * inv, dv = d.y() * inv;
+	while (true)
 	{
-		const Eigen::Vector3d p = o + t * d;
-		return p.z() - height(p.x(), p.y());
-	};
-	double t = t0, gap = gapAt(t0);
-	if (gap <= 0)
-	{
-		t_hit = t0;
-		return true;
-	}
-	while (t < t1)
-	{
-		if (denom <= 0) return false;
-		// The Lipschitz step shrinks with the gap; the floor (0.2 mm) only
-		// ends the approach of a ray that grazes the surface.
-		const double t_next = std::min(t1, t + std::max(gap / denom, 2e-4));
-		const double g_next = gapAt(t_next);
-		if (g_next <= 0)
+		const double tb = std::min({tmx, tmy, t1});
+		const double h00 = full_.at(ix, iy), h10 = full_.at(ix + 1, iy);
+		const double h01 = full_.at(ix, iy + 1), h11 = full_.at(ix + 1, iy + 1);
+		const double z_low = o.z() + d.z() * (d.z() >= 0 ? ta : tb);
+		if (z_low <= std::max({h00, h10, h01, h11}))
 		{
-			double lo = t, hi = t_next;
-			for (int k = 0; k < 24 && hi - lo > 1e-5; k++)
+			// f(t) = z(t) - [A + B u + C v + D u v], u = u0 + t du, ...
+			const double u0 = (o.x() - (x0 + ix * step)) * inv;
+			const double v0 = (o.y() - (y0 + iy * step)) * inv;
+			const double A = h00, B = h10 - h00, C = h01 - h00;
+			const double D = h00 - h10 - h01 + h11;
+			const double a2 = -D * du * dv;
+			const double a1 = d.z() - B * du - C * dv - D * (u0 * dv + v0 * du);
+			const double a0 = o.z() - A - B * u0 - C * v0 - D * u0 * v0;
+			const double f_a = (a2 * ta + a1) * ta + a0;
+			if (f_a <= 0)
 			{
-				const double mid = 0.5 * (lo + hi);
-				if (gapAt(mid) > 0)
-					lo = mid;
-				else
-					hi = mid;
+				t_hit = ta;  // started under the surface
+				return true;
 			}
-			t_hit = 0.5 * (lo + hi);
-			return true;
+			double r[2];
+			int n = 0;
+			if (std::abs(a2) < 1e-14)
+			{
+				if (std::abs(a1) > 1e-15) r[n++] = -a0 / a1;
+			}
+			else
+			{
+				const double disc = a1 * a1 - 4 * a2 * a0;
+				if (disc >= 0)
+				{
+					const double sq = std::sqrt(disc);
+					const double q = -0.5 * (a1 + (a1 >= 0 ? sq : -sq));
+					r[n++] = q / a2;
+					if (q != 0) r[n++] = a0 / q;
+					if (n == 2 && r[0] > r[1]) std::swap(r[0], r[1]);
+				}
+			}
+			for (int k = 0; k < n; k++)
+				if (r[k] >= ta - 1e-9 && r[k] <= tb + 1e-9)
+				{
+					t_hit = std::max(r[k], ta);
+					return true;
+				}
 		}
-		t = t_next;
-		gap = g_next;
+		if (tb >= t1) return false;
+		if (tmx < tmy)
+		{
+			ix += sx;
+			ta = tmx;
+			tmx += dtx;
+		}
+		else
+		{
+			iy += sy;
+			ta = tmy;
+			tmy += dty;
+		}
+		if (ix < 0 || iy < 0 || ix >= nfx || iy >= nfy) return false;
 	}
-	return false;
 }
 
 bool Terrain::raycast(const Eigen::Vector3d& o, const Eigen::Vector3d& d,

@@ -1,10 +1,9 @@
 #pragma once
 // Terrain: a smooth random height field (hills) plus a rough micro relief
-// (forest floor), both bilinear on regular grids. A ray walks the cells of
-// the smooth grid (2D DDA) and skips every cell whose highest point (corner
-// maximum + local micro-relief maximum) it passes above; only in the few
-// cells it dips below does it march against the full surface (sphere tracing
-// with the Lipschitz bound, bisection on the crossing).
+// (forest floor), summed into one bilinear grid. A ray walks the cells of
+// the smooth grid (2D DDA) and skips every cell whose highest surface node it
+// passes above; in the few cells it dips below it walks the fine cells and
+// intersects each bilinear patch exactly (a quadratic in the ray parameter).
 #include <forest_slam/sim/options.h>
 #include <forest_slam/sim/random.h>
 
@@ -33,8 +32,6 @@ class GridField
 	double value(double x, double y) const;
 	/** d/dx, d/dy of the bilinear interpolant. */
 	Eigen::Vector2d gradient(double x, double y) const;
-	/** Upper bound of the gradient norm over the whole grid. */
-	double lipschitz() const;
 	double minValue() const;
 	double maxValue() const;
 	int nx() const { return nx_; }
@@ -69,11 +66,10 @@ class Terrain
 	        const std::function<double(double, double)>& roughness_factor,
 	        Rng& rng);
 
-	/** Full surface height (hills + micro relief). */
-	double height(double x, double y) const
-	{
-		return smooth_.value(x, y) + rough_.value(x, y);
-	}
+	/** Full surface height (hills + micro relief): bilinear on the micro
+	 * relief grid of (smooth + rough), which is the sum of the two bilinear
+	 * fields when the grid steps divide each other (the defaults do). */
+	double height(double x, double y) const { return full_.value(x, y); }
 	/** Hills only: what a vehicle or a walker follows. */
 	double smoothHeight(double x, double y) const
 	{
@@ -97,12 +93,11 @@ class Terrain
 	double maxHeight() const { return max_h_; }
 
    private:
-	GridField smooth_, rough_;
+	GridField smooth_;  ///< hills, for vehicles and walkers
+	GridField full_;    ///< hills + micro relief, on the micro relief grid
 	std::vector<float> cell_max_;  ///< upper bound per smooth grid cell
-	double lip_smooth_ = 0, lip_full_ = 0;
 	bool marchCell(const Eigen::Vector3d& o, const Eigen::Vector3d& d,
 	               double t0, double t1, double& t_hit) const;
-	double rough_amp_ = 0;  ///< max |micro relief|
 	double max_h_ = 0;
 	TerrainStats stats_;
 };
