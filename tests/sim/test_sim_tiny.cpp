@@ -320,6 +320,7 @@ TEST_F(TinyNoiseFree, GyroIntegrationOver10sMatchesGtRotation)
 	const double err_deg =
 	    Eigen::AngleAxisd(R_gt.transpose() * R).angle() * 180 / M_PI;
 	EXPECT_LT(err_deg, 0.05);
+	RecordProperty("gyro_10s_error_deg", std::to_string(err_deg));
 	EXPECT_GT(turned * 180 / M_PI, 30);  // the test is not trivial
 }
 
@@ -369,6 +370,7 @@ TEST_F(TinyNoiseFree, AccelerometerIntegratesToGtMotion)
 	EXPECT_GT((p_gt - imuPose(acc[0].first).translation()).norm(),
 	          1.0);  // it moved
 	EXPECT_LT((p - p_gt).norm(), 0.02);
+	RecordProperty("accel_4s_error_m", std::to_string((p - p_gt).norm()));
 }
 
 TEST_F(TinyNoiseFree, GnssFixesDecodeToTheAntennaTrack)
