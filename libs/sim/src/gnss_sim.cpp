@@ -12,8 +12,10 @@ namespace forest_slam::sim
 {
 namespace
 {
-/** Fraction of signal reaching the antenna, averaged over directions spread
- * evenly (in solid angle) above 15 deg elevation. */
+/** Fraction of signal reaching the antenna over directions above 15 deg,
+ * cosine-weighted towards the zenith (z = sin(elevation) spaced so that the
+ * density is proportional to z): low satellites are weak and masked anyway,
+ * and it is the sky overhead that tells a clearing from a closed canopy. */
 double skyVisibility(const World& world, const Eigen::Vector3d& p, int n_rays,
                      uint64_t key, RayScratch& scratch)
 {
@@ -22,7 +24,8 @@ double skyVisibility(const World& world, const Eigen::Vector3d& p, int n_rays,
 	double sum = 0;
 	for (int i = 0; i < n_rays; i++)
 	{
-		const double z = z_min + (1 - z_min) * (i + 0.5) / n_rays;
+		const double z =
+		    std::sqrt(z_min * z_min + (1 - z_min * z_min) * (i + 0.5) / n_rays);
 		const double r = std::sqrt(1 - z * z), az = i * golden;
 		const Eigen::Vector3d d(r * std::cos(az), r * std::sin(az), z);
 		double trans = 1, t0 = 0.05;

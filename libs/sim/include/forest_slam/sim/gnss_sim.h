@@ -1,8 +1,9 @@
 #pragma once
 // GNSS receiver: the antenna's true position (world = local ENU at the
 // geodetic origin) plus an error that depends on how much sky the antenna
-// sees. Sky visibility is measured by casting rays over the upper hemisphere
-// through the scene: solid objects block, each foliage volume passes 60 %.
+// sees. Sky visibility is measured by casting rays above 15 deg elevation,
+// cosine-weighted towards the zenith, through the scene: solid objects block,
+// each foliage volume passes 60 %.
 //   visibility >= sky_open_fraction: good fix (open_fix_quality, open_sigma_m)
 //   >= sky_min_fraction: fix quality 1, metre-level error that wanders
 //                         (first-order Gauss-Markov, canopy_correlation_s)

@@ -236,7 +236,7 @@ struct GnssOptions : public mrpt::config::CLoadableOptions
 	double canopy_correlation_s = 20.0;  ///< multipath error time constant
 	double vertical_factor = 1.7;        ///< vertical sigma / horizontal sigma
 	double sky_open_fraction = 0.8;      ///< >= this: open-sky fix
-	double sky_min_fraction = 0.38;      ///< < this: no fix
+	double sky_min_fraction = 0.45;      ///< < this: no fix
 	int sky_rays = 48;
 	int open_fix_quality = 4;  ///< NMEA quality in the open (4 = RTK)
 	Mount mount{0, 0, 0.3};
