@@ -1,3 +1,5 @@
+#include "text_cells.h"
+
 #include <forest_slam/eval/json_writer.h>
 #include <forest_slam/eval/svg_plot.h>
 #include <forest_slam/eval/traj_report.h>
@@ -11,24 +13,8 @@ namespace forest_slam::eval
 {
 namespace
 {
-std::string fmt(const char* f, ...)
-{
-	char buf[512];
-	va_list ap;
-	va_start(ap, f);
-	std::vsnprintf(buf, sizeof(buf), f, ap);
-	va_end(ap);
-	return buf;
-}
-
-/** Fixed-width number, "-" for NaN. */
-std::string cell(double v, int width, int decimals)
-{
-	if (!std::isfinite(v)) return fmt("%*s", width, "-");
-	// Values that round to zero print as 0, not "-0.00".
-	if (std::abs(v) < 0.5 * std::pow(10.0, -decimals)) v = 0;
-	return fmt("%*.*f", width, decimals, v);
-}
+using detail::cell;
+using detail::fmt;
 
 void writeStats(JsonWriter& j, const SummaryStats& s)
 {
