@@ -1,5 +1,6 @@
 // forest-slam: the mapping application. Thin: parses the command line and
 // hands over to libs/pipeline. Exit codes: 0 ok, 1 runtime error, 2 usage.
+#include "cmd_online.h"
 #include "cmd_trees.h"
 
 #include <forest_slam/core/config.h>
@@ -8,6 +9,7 @@
 #include <forest_slam/pipeline/mapping_job.h>
 
 #include <cstdio>
+#include <cstdlib>
 #include <iostream>
 #include <map>
 #include <set>
@@ -22,7 +24,9 @@ const char* kUsage = R"(forest-slam: lidar + IMU forest mapping (MRPT rawlog wor
 Usage:
   forest-slam map --config FILE.ini --rawlog IN.rawlog --out DIR
                   [--poses TRAJ.tum] [--progress auto|bar|log]
+                  [--follow [--follow-timeout S]]
                   [--log-level debug|info|warn|error|quiet]
+  forest-slam online --config LIVE.ini --out DIR [--log-level ...]
   forest-slam config --dump --config FILE.ini
   forest-slam trees --cloud FILE.{las,ply,pcd} --out DIR [--config FILE.ini]
   forest-slam --help | forest-slam <command> --help
@@ -33,6 +37,15 @@ Commands:
            (serialized CForestMap: edge/planar submaps + tree layer),
            run_summary.json (counts, timing). --poses supplies lidar poses
            (TUM) when the INI says [pipeline] pose_source=trajectory.
+           --follow keeps reading IN.rawlog while another process writes
+           it; the run ends when it did not grow for --follow-timeout
+           seconds (default 10) or on Ctrl-C.
+  online   Map from live sensors declared in LIVE.ini like rawlog-grabber
+           does (e.g. driver = CVelodyneScanner over UDP), recording every
+           observation to DIR/raw.rawlog meanwhile; a status line shows
+           scans, latency, queue and drops. Ctrl-C stops grabbing, drains
+           the queue and writes the outputs of `map` + online_stats.json
+           (doc/online.md).
   config   Print the effective configuration (every key, defaults filled
            in) after checking FILE.ini strictly: unknown keys are errors.
   trees    Detect stems and measure DBH on a cloud from any scanner (TLS,
@@ -82,8 +95,10 @@ std::string require(const std::map<std::string, std::string>& o,
 int cmdMap(const std::vector<std::string>& args)
 {
 	const auto o = parseOptions(
-		args, {"--config", "--rawlog", "--out", "--poses", "--progress", "--log-level"},
-		{"--help"});
+		args,
+		{"--config", "--rawlog", "--out", "--poses", "--progress", "--log-level",
+		 "--follow-timeout"},
+		{"--help", "--follow"});
 	if (o.count("--help"))
 	{
 		std::cout << kUsage;
@@ -97,6 +112,16 @@ int cmdMap(const std::vector<std::string>& args)
 	job.rawlog_path = require(o, "--rawlog");
 	job.out_dir = require(o, "--out");
 	if (o.count("--poses")) job.poses_path = o.at("--poses");
+	job.follow = o.count("--follow") > 0;
+	if (o.count("--follow-timeout"))
+	{
+		if (!job.follow) throw UsageError("--follow-timeout needs --follow");
+		const auto& v = o.at("--follow-timeout");
+		char* end = nullptr;
+		job.follow_timeout_s = std::strtod(v.c_str(), &end);
+		if (v.empty() || *end || !(job.follow_timeout_s > 0))
+			throw UsageError("--follow-timeout expects seconds > 0, got '" + v + "'");
+	}
 	if (o.count("--progress"))
 	{
 		const auto& p = o.at("--progress");
@@ -152,7 +177,7 @@ int main(int argc, char** argv)
 	try
 	{
 		if (args.empty())
-			throw UsageError("missing command (map | config | trees)");
+			throw UsageError("missing command (map | online | config | trees)");
 		const std::string cmd = args[0];
 		const std::vector<std::string> rest(args.begin() + 1, args.end());
 		if (cmd == "--help" || cmd == "-h" || cmd == "help")
@@ -162,6 +187,17 @@ int main(int argc, char** argv)
 		}
 		if (cmd == "map") return cmdMap(rest);
 		if (cmd == "config") return cmdConfig(rest);
+		if (cmd == "online")
+		{
+			try
+			{
+				return forest_slam::app::cmdOnline(rest, kUsage);
+			}
+			catch (const forest_slam::app::OnlineUsageError& e)
+			{
+				throw UsageError(e.what());
+			}
+		}
 		if (cmd == "trees")
 		{
 			try
@@ -173,7 +209,7 @@ int main(int argc, char** argv)
 				throw UsageError(e.what());
 			}
 		}
-		throw UsageError("unknown command '" + cmd + "' (expected map | config | trees)");
+		throw UsageError("unknown command '" + cmd + "' (expected map | online | config | trees)");
 	}
 	catch (const UsageError& e)
 	{

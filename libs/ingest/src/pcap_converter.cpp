@@ -2,6 +2,7 @@
 #include <forest_slam/core/log.h>
 #include <forest_slam/core/progress.h>
 #include <forest_slam/ingest/pcap_converter.h>
+#include <forest_slam/ingest/pcap_file.h>
 #include <forest_slam/ingest/stamps.h>
 #include <forest_slam/io/rawlog_writer.h>
 
@@ -16,35 +17,20 @@ namespace forest_slam::ingest
 {
 namespace
 {
-/** Time of the first record of a classic pcap file [UNIX ns], or -1. */
+/** Time of the first UDP datagram of a classic pcap file [UNIX ns], or -1
+ * (pcapng, damaged: MRPT/libpcap will judge). */
 int64_t pcapFirstRecordNs(const std::string& path)
 {
-	std::ifstream f(path, std::ios::binary);
-	uint8_t h[24 + 16];
-	if (!f.read(reinterpret_cast<char*>(h), sizeof(h))) return -1;
-	auto rd = [&](const uint8_t* p, bool swap)
+	try
 	{
-		uint32_t v = swap ? (uint32_t(p[0]) << 24 | uint32_t(p[1]) << 16 |
-		                     uint32_t(p[2]) << 8 | p[3])
-		                  : (uint32_t(p[3]) << 24 | uint32_t(p[2]) << 16 |
-		                     uint32_t(p[1]) << 8 | p[0]);
-		return v;
-	};
-	const uint32_t magic = rd(h, false);
-	bool swap = false, nanos = false;
-	if (magic == 0xa1b2c3d4)
-	{
+		PcapFile f(path);
+		PcapUdpDatagram d;
+		return f.nextUdp(d) ? d.stamp_ns : -1;
 	}
-	else if (magic == 0xd4c3b2a1)
-		swap = true;
-	else if (magic == 0xa1b23c4d)
-		nanos = true;
-	else if (magic == 0x4d3cb2a1)
-		swap = nanos = true;
-	else
-		return -1;  // pcapng or not a pcap: MRPT/libpcap will judge
-	const int64_t sec = rd(h + 24, swap), frac = rd(h + 28, swap);
-	return sec * 1000000000LL + (nanos ? frac : frac * 1000);
+	catch (const std::exception&)
+	{
+		return -1;
+	}
 }
 
 /** Azimuth swept by a revolution's packets [deg]. */

@@ -6,6 +6,17 @@
 
 namespace forest_slam::io
 {
+void appendRecordObservations(
+	const mrpt::serialization::CSerializable::Ptr& record,
+	std::deque<mrpt::obs::CObservation::Ptr>& out)
+{
+	if (auto obs = std::dynamic_pointer_cast<mrpt::obs::CObservation>(record))
+		out.push_back(obs);
+	else if (auto sf = std::dynamic_pointer_cast<mrpt::obs::CSensoryFrame>(record))
+		for (const auto& o : *sf) out.push_back(o);
+	// CActionCollection and other objects carry nothing we use.
+}
+
 RawlogReader::RawlogReader(const std::string& path)
 	: path_(path), in_(std::make_unique<GzInputStream>(path))
 {
@@ -52,11 +63,7 @@ mrpt::obs::CObservation::Ptr RawlogReader::next()
 				path_, records_, offset);
 		}
 		records_++;
-		if (auto obs = std::dynamic_pointer_cast<mrpt::obs::CObservation>(obj))
-			pending_.push_back(obs);
-		else if (auto sf = std::dynamic_pointer_cast<mrpt::obs::CSensoryFrame>(obj))
-			for (const auto& o : *sf) pending_.push_back(o);
-		// CActionCollection and other objects carry nothing we use.
+		appendRecordObservations(obj, pending_);
 	}
 	auto o = pending_.front();
 	pending_.pop_front();

@@ -2,6 +2,8 @@
 
 #include <mrpt/config/CConfigFileMemory.h>
 
+#include <algorithm>
+
 namespace forest_slam::pipeline
 {
 MappingConfig MappingConfig::load(core::TrackedConfig& cfg)
@@ -15,6 +17,18 @@ MappingConfig MappingConfig::load(core::TrackedConfig& cfg)
 	m.odometry.ground.loadFromConfigFile(cfg, "ground");
 	m.odometry.cluster.loadFromConfigFile(cfg, "cluster");
 	m.odometry.features.loadFromConfigFile(cfg, "features");
+	// An online INI's sensor sections (driver = ...) and [online] belong to
+	// `forest-slam online`, which checks them; accepting them here lets the
+	// same INI re-map the recorded raw.rawlog offline.
+	std::vector<std::string> sections;
+	cfg.getAllSections(sections);
+	for (const auto& s : sections)
+	{
+		std::vector<std::string> keys;
+		cfg.getAllKeys(s, keys);
+		if (s == "online" || std::count(keys.begin(), keys.end(), std::string("driver")))
+			cfg.acceptSection(s);
+	}
 	cfg.checkNoUnknownKeys();
 	return m;
 }

@@ -1,6 +1,7 @@
 #include <forest_slam/core/atomic_file.h>
 #include <forest_slam/core/log.h>
 #include <forest_slam/core/progress.h>
+#include <forest_slam/io/rawlog_follower.h>
 #include <forest_slam/io/rawlog_reader.h>
 #include <forest_slam/io/tum.h>
 #include <forest_slam/pipeline/mapping_job.h>
@@ -21,28 +22,33 @@ namespace forest_slam::pipeline
 namespace
 {
 std::atomic<int> g_stop_signal{0};
+int g_signal_scopes = 0;  // nesting depth of StopSignalScope
+struct sigaction g_old_int{}, g_old_term{};
 extern "C" void onStopSignal(int sig) { g_stop_signal = sig; }
+}  // namespace
 
-/** Installs SIGINT/SIGTERM handlers for the job's lifetime. */
-struct StopSignalGuard
+StopSignalScope::StopSignalScope()
 {
-	struct sigaction old_int{}, old_term{};
-	StopSignalGuard()
-	{
-		g_stop_signal = 0;
-		struct sigaction sa{};
-		sa.sa_handler = onStopSignal;
-		sigemptyset(&sa.sa_mask);
-		sigaction(SIGINT, &sa, &old_int);
-		sigaction(SIGTERM, &sa, &old_term);
-	}
-	~StopSignalGuard()
-	{
-		sigaction(SIGINT, &old_int, nullptr);
-		sigaction(SIGTERM, &old_term, nullptr);
-	}
-};
+	if (g_signal_scopes++ > 0) return;
+	g_stop_signal = 0;
+	struct sigaction sa{};
+	sa.sa_handler = onStopSignal;
+	sigemptyset(&sa.sa_mask);
+	sigaction(SIGINT, &sa, &g_old_int);
+	sigaction(SIGTERM, &sa, &g_old_term);
+}
 
+StopSignalScope::~StopSignalScope()
+{
+	if (--g_signal_scopes > 0) return;
+	sigaction(SIGINT, &g_old_int, nullptr);
+	sigaction(SIGTERM, &g_old_term, nullptr);
+}
+
+int stopSignal() { return g_stop_signal.load(); }
+
+namespace
+{
 std::string jsonEscape(const std::string& s)
 {
 	std::string o;
@@ -89,9 +95,97 @@ std::string stageTimesJson(const std::vector<odometry::ScanTiming>& t)
 }
 }  // namespace
 
+namespace
+{
+/** A finished rawlog (gzip or plain), with a progress bar. */
+class RawlogSource : public ObservationSource
+{
+   public:
+	explicit RawlogSource(const MappingJob& job)
+		: reader_(job.rawlog_path), progress_(job.progress_tty)
+	{
+	}
+	mrpt::obs::CObservation::Ptr next() override { return reader_.next(); }
+	void processed(const mrpt::obs::CObservation&, const MappingPipeline& p) override
+	{
+		if (p.stats().scans_in == scans_seen_) return;
+		scans_seen_ = p.stats().scans_in;
+		progress_.update(p.stats().scans_mapped, reader_.fractionRead(),
+						 p.stats().dataSeconds());
+	}
+	void finish(const MappingPipeline& p) override
+	{
+		progress_.update(p.stats().scans_mapped, reader_.fractionRead(),
+						 p.stats().dataSeconds());
+		progress_.finish();
+	}
+	std::string describe() const override { return reader_.path(); }
+
+   private:
+	io::RawlogReader reader_;
+	core::ProgressReporter progress_;
+	uint64_t scans_seen_ = 0;
+};
+
+/** A rawlog another process is still writing (--follow). */
+class FollowedRawlogSource : public ObservationSource
+{
+   public:
+	explicit FollowedRawlogSource(const MappingJob& job)
+		: follower_(job.rawlog_path, followOptions(job)), progress_(job.progress_tty)
+	{
+		if (follower_.gzip())
+			FS_LOG_WARN(job.rawlog_path
+						<< " is gzip-compressed: followed as its compressed "
+						   "blocks are flushed (a plain rawlog is read record "
+						   "by record)");
+	}
+	mrpt::obs::CObservation::Ptr next() override { return follower_.next(); }
+	void processed(const mrpt::obs::CObservation&, const MappingPipeline& p) override
+	{
+		if (p.stats().scans_in == scans_seen_) return;
+		scans_seen_ = p.stats().scans_in;
+		progress_.update(p.stats().scans_mapped, -1, p.stats().dataSeconds());
+	}
+	void finish(const MappingPipeline& p) override
+	{
+		progress_.update(p.stats().scans_mapped, -1, p.stats().dataSeconds());
+		progress_.finish();
+	}
+	std::string describe() const override
+	{
+		return follower_.path() + " (following as it grows)";
+	}
+
+   private:
+	static io::FollowOptions followOptions(const MappingJob& job)
+	{
+		io::FollowOptions o;
+		o.idle_timeout_s = job.follow_timeout_s;
+		o.should_stop = [] { return stopSignal() != 0; };
+		return o;
+	}
+	io::RawlogFollower follower_;
+	core::ProgressReporter progress_;
+	uint64_t scans_seen_ = 0;
+};
+}  // namespace
+
 MappingResult runMapping(const MappingJob& job)
 {
 	const MappingConfig cfg = MappingConfig::loadFile(job.config_path);
+	StopSignalScope signals;  // also while --follow waits for the file
+	std::unique_ptr<ObservationSource> source;
+	if (job.follow)
+		source = std::make_unique<FollowedRawlogSource>(job);
+	else
+		source = std::make_unique<RawlogSource>(job);
+	return runMapping(job, cfg, *source);
+}
+
+MappingResult runMapping(const MappingJob& job, const MappingConfig& cfg,
+						 ObservationSource& source)
+{
 	std::optional<core::Trajectory> poses;
 	if (!job.poses_path.empty())
 	{
@@ -103,28 +197,29 @@ MappingResult runMapping(const MappingJob& job)
 				" (set pose_source=trajectory)");
 	}
 	core::ensureDirectory(job.out_dir);
-	io::RawlogReader reader(job.rawlog_path);
 	MappingPipeline pipeline(cfg, poses);
 
 	MappingResult result;
-	StopSignalGuard signals;
-	core::ProgressReporter progress(job.progress_tty);
+	StopSignalScope signals;
 	const auto t0 = std::chrono::steady_clock::now();
-	FS_LOG_INFO("mapping " << job.rawlog_path << " with " << job.config_path
+	FS_LOG_INFO("mapping " << source.describe() << " with " << job.config_path
 						   << " -> " << job.out_dir);
 	while (!pipeline.reachedScanLimit())
 	{
-		if (g_stop_signal)
+		if (g_stop_signal && !result.interrupted)
 		{
 			result.interrupted = true;
 			FS_LOG_WARN("signal " << g_stop_signal.load()
-								  << " received: stopping, writing outputs");
-			break;
+								  << (source.drainOnStop()
+										  ? " received: stopping, draining the "
+											"queue, writing outputs"
+										  : " received: stopping, writing outputs"));
+			if (!source.drainOnStop()) break;
 		}
 		mrpt::obs::CObservation::Ptr obs;
 		try
 		{
-			obs = reader.next();
+			obs = source.next();
 		}
 		catch (const io::RawlogError& e)
 		{
@@ -136,20 +231,18 @@ MappingResult runMapping(const MappingJob& job)
 			break;
 		}
 		if (!obs) break;
-		const auto scans_before = pipeline.stats().scans_in;
+		source.willProcess(*obs, pipeline);
 		pipeline.process(obs);
-		if (pipeline.stats().scans_in != scans_before)
-			progress.update(pipeline.stats().scans_mapped, reader.fractionRead(),
-							pipeline.stats().dataSeconds());
+		source.processed(*obs, pipeline);
 	}
-	progress.update(pipeline.stats().scans_mapped, reader.fractionRead(),
-					pipeline.stats().dataSeconds());
-	progress.finish();
+	source.finish(pipeline);
 	result.stats = pipeline.stats();
 	result.wall_seconds = std::chrono::duration<double>(
 							  std::chrono::steady_clock::now() - t0)
 							  .count();
 	result.outputs = writeOutputs(pipeline, result, job.out_dir);
+	for (const auto& f : source.writeOutputs(job.out_dir))
+		result.outputs.push_back(f);
 	return result;
 }
 
@@ -187,6 +280,7 @@ std::vector<std::string> writeOutputs(
 		   << "  \"scans_unreadable\": " << s.scans_unreadable << ",\n"
 		   << "  \"scans_degenerate\": " << s.scans_degenerate << ",\n"
 		   << "  \"scans_unregistered\": " << s.scans_unregistered << ",\n"
+		   << "  \"scans_light\": " << s.scans_light << ",\n"
 		   << "  \"imu\": " << s.imu << ",\n"
 		   << "  \"gnss\": " << s.gnss << ",\n"
 		   << "  \"other\": " << s.other << ",\n"

@@ -42,6 +42,7 @@ void MappingPipeline::process(const mrpt::obs::CObservation::Ptr& obs)
 	const auto& o = cfg_.pipeline;
 	if (label == o.lidar_label)
 	{
+		if (light_scans_ && processLightScan(*obs)) return;
 		if (auto rot = std::dynamic_pointer_cast<mrpt::obs::CObservationRotatingScan>(obs))
 			processScan(*rot);
 		else if (auto vel = std::dynamic_pointer_cast<mrpt::obs::CObservationVelodyneScan>(obs))

@@ -29,6 +29,12 @@ class RawlogError : public std::runtime_error
 	uint64_t byte_offset;  ///< compressed offset where the damage starts
 };
 
+/** Appends the observations one rawlog record holds (an observation, or
+ * those of a CSensoryFrame); actions and other objects hold none we use. */
+void appendRecordObservations(
+	const mrpt::serialization::CSerializable::Ptr& record,
+	std::deque<mrpt::obs::CObservation::Ptr>& out);
+
 class RawlogReader
 {
    public:

@@ -4,6 +4,7 @@
 // output atomically into the output folder.
 #include <forest_slam/pipeline/mapping_config.h>
 #include <forest_slam/pipeline/mapping_pipeline.h>
+#include <forest_slam/pipeline/observation_source.h>
 
 #include <string>
 
@@ -16,6 +17,10 @@ struct MappingJob
 	std::string out_dir;
 	std::string poses_path;	 ///< optional TUM file (pose_source=trajectory)
 	int progress_tty = -1;	///< -1 auto, 0 log lines, 1 bar
+	/** Keep reading as the rawlog grows (another process writes it); the
+	 * run ends once it did not grow for follow_timeout_s, or on SIGINT. */
+	bool follow = false;
+	double follow_timeout_s = 10.0;
 };
 
 struct MappingResult
@@ -33,6 +38,11 @@ struct MappingResult
  * found mid-way does not throw: processing stops there, outputs are written
  * for what was processed and `input_damaged` is set. */
 MappingResult runMapping(const MappingJob& job);
+
+/** The same run over any source of observations (job.rawlog_path, follow
+ * and progress_tty are then the source's business). */
+MappingResult runMapping(const MappingJob& job, const MappingConfig& cfg,
+						 ObservationSource& source);
 
 /** Writes trajectory.tum, forest.map (gzip MRPT archive of the CForestMap)
  * and run_summary.json into `out_dir`; returns the paths written. */

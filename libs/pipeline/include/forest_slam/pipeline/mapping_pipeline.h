@@ -31,6 +31,9 @@ struct RunStats
 	uint64_t scans_unreadable = 0;	///< unknown model / malformed image
 	uint64_t scans_degenerate = 0;	///< odometry: weak geometry
 	uint64_t scans_unregistered = 0;  ///< odometry: motion model carried the pose
+	/** Online, pipeline behind the sensors: motion-model pose only, not
+	 * registered nor inserted into the map (setLightScans). */
+	uint64_t scans_light = 0;
 	uint64_t imu = 0, gnss = 0, other = 0;
 	/** Odometry per-stage milliseconds, one entry per scan. */
 	std::vector<odometry::ScanTiming> stage_ms;
@@ -60,6 +63,12 @@ class MappingPipeline
 	const RunStats& stats() const { return stats_; }
 	bool reachedScanLimit() const;
 
+	/** Online mode when the pipeline falls behind the sensors: while on,
+	 * lidar scans get the pose a constant-velocity model extrapolates from
+	 * the last two poses, and are neither registered nor inserted into the
+	 * map (odometry pose source; the others are cheap and unaffected). */
+	void setLightScans(bool on) { light_scans_ = on; }
+
    private:
 	MappingConfig cfg_;
 	std::optional<core::Trajectory> poses_;
@@ -74,6 +83,9 @@ class MappingPipeline
 	uint64_t gravity_samples_ = 0;
 	std::optional<Eigen::Isometry3d> static_pose_;
 	std::unique_ptr<odometry::LidarOdometry> odometry_;
+	bool light_scans_ = false;
+	/** light_scan.cpp; false if it does not apply (then processed fully). */
+	bool processLightScan(const mrpt::obs::CObservation& scan);
 
 	void accumulateGravity(const mrpt::obs::CObservation& imu);
 	/** First lidar pose in the map frame: at the origin, levelled with the
