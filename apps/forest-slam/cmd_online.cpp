@@ -25,7 +25,8 @@ int cmdOnline(const std::vector<std::string>& args, const char* usage)
 		}
 		if (a != "--config" && a != "--out" && a != "--log-level")
 			throw OnlineUsageError("unknown option '" + a + "'");
-		if (i + 1 >= args.size()) throw OnlineUsageError("option " + a + " needs a value");
+		if (i + 1 >= args.size())
+			throw OnlineUsageError("option " + a + " needs a value");
 		const auto& v = args[++i];
 		if (a == "--config")
 			job.config_path = v;
@@ -34,31 +35,36 @@ int cmdOnline(const std::vector<std::string>& args, const char* usage)
 		else
 			core::setLogLevel(core::parseLogLevel(v));
 	}
-	if (job.config_path.empty()) throw OnlineUsageError("missing required option --config");
-	if (job.out_dir.empty()) throw OnlineUsageError("missing required option --out");
+	if (job.config_path.empty())
+		throw OnlineUsageError("missing required option --config");
+	if (job.out_dir.empty())
+		throw OnlineUsageError("missing required option --out");
 
 	const auto r = online::runOnline(job);
 	const auto& s = r.mapping.stats;
 	const auto lat = online::Spread::of(r.live.latency_ms);
 	std::printf(
-		"scans: %llu captured, %llu processed (%llu mapped, %llu light), %llu "
-		"dropped from the pipeline queue; imu %llu, gnss %llu\n",
-		(unsigned long long)r.live.scans_captured,
-		(unsigned long long)r.live.scans_processed,
-		(unsigned long long)s.scans_mapped, (unsigned long long)s.scans_light,
-		(unsigned long long)r.live.scans_dropped, (unsigned long long)s.imu,
-		(unsigned long long)s.gnss);
-	std::printf("latency capture -> pose: median %.0f ms, p95 %.0f ms, max %.0f ms\n",
-				lat.median, lat.p95, lat.max);
-	std::printf("recorded: %llu of %llu observations (%.1f MB) to %s/raw.rawlog\n",
-				(unsigned long long)r.live.recorded,
-				(unsigned long long)r.live.observations_captured,
-				r.live.recorded_bytes / 1e6, job.out_dir.c_str());
-	for (const auto& f : r.mapping.outputs) std::printf("wrote %s\n", f.c_str());
+	    "scans: %llu captured, %llu processed (%llu mapped, %llu light), %llu "
+	    "dropped from the pipeline queue; imu %llu, gnss %llu\n",
+	    (unsigned long long)r.live.scans_captured,
+	    (unsigned long long)r.live.scans_processed,
+	    (unsigned long long)s.scans_mapped, (unsigned long long)s.scans_light,
+	    (unsigned long long)r.live.scans_dropped, (unsigned long long)s.imu,
+	    (unsigned long long)s.gnss);
+	std::printf(
+	    "latency capture -> pose: median %.0f ms, p95 %.0f ms, max %.0f ms\n",
+	    lat.median, lat.p95, lat.max);
+	std::printf(
+	    "recorded: %llu of %llu observations (%.1f MB) to %s/raw.rawlog\n",
+	    (unsigned long long)r.live.recorded,
+	    (unsigned long long)r.live.observations_captured,
+	    r.live.recorded_bytes / 1e6, job.out_dir.c_str());
+	for (const auto& f : r.mapping.outputs)
+		std::printf("wrote %s\n", f.c_str());
 	if (!r.recording_error.empty())
 	{
 		std::fprintf(stderr, "forest-slam: raw recording failed: %s\n",
-					 r.recording_error.c_str());
+		             r.recording_error.c_str());
 		return 1;
 	}
 	return 0;

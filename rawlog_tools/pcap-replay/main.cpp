@@ -25,27 +25,31 @@
 namespace
 {
 const char* kUsage =
-	"usage: pcap-replay --pcap IN.pcap [--rate R] [--host IP]\n"
-	"                   [--data-port N] [--position-port N] [--quiet]\n"
-	"\n"
-	"Sends the UDP packets of a Velodyne capture with their recorded timing\n"
-	"(scaled by 1/R) to IP: packets captured to port 2368 (data) go to\n"
-	"--data-port, those to port 8308 (position/GPS) to --position-port;\n"
-	"other packets are skipped.\n"
-	"\n"
-	"  --pcap PATH         capture (classic libpcap format)\n"
-	"  --rate R            replay speed, 1.0 = recorded timing, 5 = five times\n"
-	"                      faster; 0 = as fast as possible (default 1.0)\n"
-	"  --host IP           IPv4 destination (default 127.0.0.1)\n"
-	"  --data-port N       default 2368\n"
-	"  --position-port N   default 8308\n"
-	"  --quiet             no summary\n"
-	"\n"
-	"Exit codes: 0 ok, 1 runtime error, 2 usage error.\n";
+    "usage: pcap-replay --pcap IN.pcap [--rate R] [--host IP]\n"
+    "                   [--data-port N] [--position-port N] [--quiet]\n"
+    "\n"
+    "Sends the UDP packets of a Velodyne capture with their recorded timing\n"
+    "(scaled by 1/R) to IP: packets captured to port 2368 (data) go to\n"
+    "--data-port, those to port 8308 (position/GPS) to --position-port;\n"
+    "other packets are skipped.\n"
+    "\n"
+    "  --pcap PATH         capture (classic libpcap format)\n"
+    "  --rate R            replay speed, 1.0 = recorded timing, 5 = five "
+    "times\n"
+    "                      faster; 0 = as fast as possible (default 1.0)\n"
+    "  --host IP           IPv4 destination (default 127.0.0.1)\n"
+    "  --data-port N       default 2368\n"
+    "  --position-port N   default 8308\n"
+    "  --quiet             no summary\n"
+    "\n"
+    "Exit codes: 0 ok, 1 runtime error, 2 usage error.\n";
 
 constexpr uint16_t kVelodyneDataPort = 2368, kVelodynePositionPort = 8308;
 std::atomic<bool> g_stop{false};
-extern "C" void onSignal(int) { g_stop = true; }
+extern "C" void onSignal(int)
+{
+	g_stop = true;
+}
 
 int usageError(const std::string& msg)
 {
@@ -93,13 +97,15 @@ int main(int argc, char** argv)
 			const std::string& v = args[++i];
 			rate = std::strtod(v.c_str(), &end);
 			if (v.empty() || *end || !std::isfinite(rate) || rate < 0)
-				return usageError("--rate expects a number >= 0, got '" + v + "'");
+				return usageError("--rate expects a number >= 0, got '" + v +
+				                  "'");
 		}
 		else if (a == "--data-port" || a == "--position-port")
 		{
-			if (!parsePort(args[++i], a == "--data-port" ? data_port : pos_port))
+			if (!parsePort(args[++i],
+			               a == "--data-port" ? data_port : pos_port))
 				return usageError(a + " expects a port 1..65535, got '" +
-								  args[i] + "'");
+				                  args[i] + "'");
 		}
 		else
 			return usageError("unknown option '" + a + "'");
@@ -117,7 +123,8 @@ int main(int argc, char** argv)
 		forest_slam::ingest::PcapFile file(pcap);
 		const int sock = ::socket(AF_INET, SOCK_DGRAM, 0);
 		if (sock < 0)
-			throw std::runtime_error(std::string("socket: ") + std::strerror(errno));
+			throw std::runtime_error(std::string("socket: ") +
+			                         std::strerror(errno));
 		using Clock = std::chrono::steady_clock;
 		forest_slam::ingest::PcapUdpDatagram d;
 		uint64_t data = 0, position = 0, other = 0;
@@ -140,30 +147,36 @@ int main(int argc, char** argv)
 			if (first) first_ns = d.stamp_ns, first = false;
 			if (rate > 0)
 			{
-				const auto due = start + std::chrono::nanoseconds(static_cast<int64_t>(
-											 (d.stamp_ns - first_ns) / rate));
+				const auto due =
+				    start + std::chrono::nanoseconds(static_cast<int64_t>(
+				                (d.stamp_ns - first_ns) / rate));
 				std::this_thread::sleep_until(due);
 				max_late_ms = std::max(
-					max_late_ms,
-					std::chrono::duration<double, std::milli>(Clock::now() - due).count());
+				    max_late_ms, std::chrono::duration<double, std::milli>(
+				                     Clock::now() - due)
+				                     .count());
 			}
 			dst.sin_port = htons(port);
 			if (::sendto(sock, d.payload.data(), d.payload.size(), 0,
-						 reinterpret_cast<const sockaddr*>(&dst), sizeof(dst)) < 0)
-				throw std::runtime_error("sendto " + host + ":" + std::to_string(port) +
-										 ": " + std::strerror(errno));
+			             reinterpret_cast<const sockaddr*>(&dst),
+			             sizeof(dst)) < 0)
+				throw std::runtime_error("sendto " + host + ":" +
+				                         std::to_string(port) + ": " +
+				                         std::strerror(errno));
 			(port == data_port ? data : position)++;
 		}
 		::close(sock);
 		if (!quiet)
 			std::printf(
-				"pcap-replay: sent %llu data + %llu position packets to %s in "
-				"%.2f s (rate %g, latest packet %.1f ms behind schedule); %llu "
-				"other UDP + %llu non-UDP records skipped%s\n",
-				(unsigned long long)data, (unsigned long long)position, host.c_str(),
-				std::chrono::duration<double>(Clock::now() - start).count(), rate,
-				max_late_ms, (unsigned long long)other,
-				(unsigned long long)file.skipped(), g_stop ? " (interrupted)" : "");
+			    "pcap-replay: sent %llu data + %llu position packets to %s in "
+			    "%.2f s (rate %g, latest packet %.1f ms behind schedule); %llu "
+			    "other UDP + %llu non-UDP records skipped%s\n",
+			    (unsigned long long)data, (unsigned long long)position,
+			    host.c_str(),
+			    std::chrono::duration<double>(Clock::now() - start).count(),
+			    rate, max_late_ms, (unsigned long long)other,
+			    (unsigned long long)file.skipped(),
+			    g_stop ? " (interrupted)" : "");
 		return 0;
 	}
 	catch (const std::exception& e)

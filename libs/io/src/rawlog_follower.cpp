@@ -25,21 +25,22 @@ double secondsSince(Clock::time_point t)
 }  // namespace
 
 RawlogFollower::RawlogFollower(const std::string& path, FollowOptions opts)
-	: path_(path), opts_(std::move(opts))
+    : path_(path), opts_(std::move(opts))
 {
 	// gzopen decides gzip vs plain from the first two bytes: wait for them.
 	const auto t0 = Clock::now();
 	std::error_code ec;
 	while (!(std::filesystem::is_regular_file(path, ec) &&
-			 std::filesystem::file_size(path, ec) >= 2))
+	         std::filesystem::file_size(path, ec) >= 2))
 	{
 		if ((opts_.should_stop && opts_.should_stop()) ||
-			secondsSince(t0) > opts_.idle_timeout_s)
-			throw std::runtime_error(
-				"--follow: '" + path + "' did not appear (or stayed empty) for " +
-				std::to_string(opts_.idle_timeout_s) + " s");
+		    secondsSince(t0) > opts_.idle_timeout_s)
+			throw std::runtime_error("--follow: '" + path +
+			                         "' did not appear (or stayed empty) for " +
+			                         std::to_string(opts_.idle_timeout_s) +
+			                         " s");
 		std::this_thread::sleep_for(
-			std::chrono::duration<double>(opts_.poll_period_s));
+		    std::chrono::duration<double>(opts_.poll_period_s));
 	}
 	{
 		std::ifstream f(path, std::ios::binary);
@@ -49,8 +50,8 @@ RawlogFollower::RawlogFollower(const std::string& path, FollowOptions opts)
 	}
 	gz_ = gzopen(path.c_str(), "rb");
 	if (!gz_)
-		throw std::runtime_error(
-			"cannot open '" + path + "': " + std::strerror(errno));
+		throw std::runtime_error("cannot open '" + path +
+		                         "': " + std::strerror(errno));
 }
 
 RawlogFollower::~RawlogFollower()
@@ -61,7 +62,7 @@ RawlogFollower::~RawlogFollower()
 size_t RawlogFollower::readAvailable()
 {
 	auto* g = static_cast<gzFile>(gz_);
-	gzclearerr(g);	// past EOF: let gzread look at the file again
+	gzclearerr(g);  // past EOF: let gzread look at the file again
 	size_t total = 0;
 	constexpr unsigned kChunk = 1u << 18;
 	for (;;)
@@ -78,9 +79,9 @@ size_t RawlogFollower::readAvailable()
 	// Z_BUF_ERROR: the gzip stream ends mid-block, i.e. is still being written.
 	if (err != Z_OK && err != Z_BUF_ERROR)
 		throw RawlogError(path_ + ": compressed stream damaged near record " +
-							  std::to_string(records_) + ": " +
-							  (msg ? msg : "?"),
-						  path_, records_, bytesConsumed());
+		                      std::to_string(records_) + ": " +
+		                      (msg ? msg : "?"),
+		                  path_, records_, bytesConsumed());
 	return total;
 }
 
@@ -142,16 +143,16 @@ mrpt::obs::CObservation::Ptr RawlogFollower::next()
 			std::string what = last_parse_error_;
 			if (what.size() > 300) what = what.substr(0, 300) + "...";
 			throw RawlogError(
-				path_ + ": record " + std::to_string(records_) +
-					" starting at byte " + std::to_string(bytesConsumed()) +
-					" is incomplete or corrupt and the file stopped growing " +
-					std::to_string(opts_.idle_timeout_s) + " s ago (" +
-					std::to_string(buf_.size() - pos_) +
-					" bytes left over): " + what,
-				path_, records_, bytesConsumed());
+			    path_ + ": record " + std::to_string(records_) +
+			        " starting at byte " + std::to_string(bytesConsumed()) +
+			        " is incomplete or corrupt and the file stopped growing " +
+			        std::to_string(opts_.idle_timeout_s) + " s ago (" +
+			        std::to_string(buf_.size() - pos_) +
+			        " bytes left over): " + what,
+			    path_, records_, bytesConsumed());
 		}
 		std::this_thread::sleep_for(
-			std::chrono::duration<double>(opts_.poll_period_s));
+		    std::chrono::duration<double>(opts_.poll_period_s));
 	}
 	auto o = pending_.front();
 	pending_.pop_front();

@@ -36,17 +36,16 @@ Spread Spread::of(std::vector<double> v)
 }
 
 LiveSource::LiveSource(const OnlineConfig& cfg, const std::string& out_dir)
-	: cfg_(cfg)
+    : cfg_(cfg)
 {
 	core::ensureDirectory(out_dir);
 	recorder_ = std::make_unique<RawRecorder>(out_dir + "/raw.rawlog",
-											  cfg.online.record_compress_level,
-											  cfg.online.record_flush_period_s);
+	                                          cfg.online.record_compress_level,
+	                                          cfg.online.record_flush_period_s);
 	for (const auto& s : cfg_.sensors)
 		grabbers_.push_back(std::make_unique<SensorGrabber>(
-			s, [this](const mrpt::obs::CObservation::Ptr& o, SteadyClock::time_point t) {
-				onObservation(o, t);
-			}));
+		    s, [this](const mrpt::obs::CObservation::Ptr& o,
+		              SteadyClock::time_point t) { onObservation(o, t); }));
 }
 
 LiveSource::~LiveSource()
@@ -66,9 +65,9 @@ void LiveSource::start()
 }
 
 void LiveSource::onObservation(const mrpt::obs::CObservation::Ptr& obs,
-							   SteadyClock::time_point t)
+                               SteadyClock::time_point t)
 {
-	recorder_->record(obs);	 // first, and unconditionally
+	recorder_->record(obs);  // first, and unconditionally
 	const bool scan = obs->sensorLabel == cfg_.mapping.pipeline.lidar_label;
 	{
 		std::lock_guard<std::mutex> lk(mu_);
@@ -80,8 +79,9 @@ void LiveSource::onObservation(const mrpt::obs::CObservation::Ptr& obs,
 			if (stats_.queue_now >= cfg_.online.queue_capacity_scans)
 			{
 				// Even light scans cannot keep up: drop the oldest waiting one.
-				const auto it = std::find_if(queue_.begin(), queue_.end(),
-											 [](const Item& i) { return i.scan; });
+				const auto it =
+				    std::find_if(queue_.begin(), queue_.end(),
+				                 [](const Item& i) { return i.scan; });
 				queue_.erase(it);
 				stats_.queue_now--;
 				stats_.scans_dropped++;
@@ -111,7 +111,7 @@ void LiveSource::stopGrabbing()
 	for (auto& g : grabbers_) g->stop();  // outside the lock: they push
 	std::lock_guard<std::mutex> lk(mu_);
 	FS_LOG_INFO("grabbing stopped; " << queue_.size()
-									 << " observations left to process");
+	                                 << " observations left to process");
 }
 
 mrpt::obs::CObservation::Ptr LiveSource::next()
@@ -129,21 +129,21 @@ mrpt::obs::CObservation::Ptr LiveSource::next()
 				if (current_.scan) stats_.queue_now--;
 				return current_.obs;
 			}
-			if (!grabbing_) return nullptr;	 // stopped and drained
+			if (!grabbing_) return nullptr;  // stopped and drained
 			const double idle = std::chrono::duration<double>(
-									SteadyClock::now() - last_arrival_)
-									.count();
+			                        SteadyClock::now() - last_arrival_)
+			                        .count();
 			stop_now = pipeline::stopSignal() != 0 || allExhausted() ||
-					   (cfg_.online.idle_timeout_s > 0 &&
-						idle > cfg_.online.idle_timeout_s);
-			if (!stop_now)
-				cv_.wait_for(lk, std::chrono::milliseconds(100));
+			           (cfg_.online.idle_timeout_s > 0 &&
+			            idle > cfg_.online.idle_timeout_s);
+			if (!stop_now) cv_.wait_for(lk, std::chrono::milliseconds(100));
 		}
 		if (stop_now) stopGrabbing();
 	}
 }
 
-void LiveSource::willProcess(const mrpt::obs::CObservation&, pipeline::MappingPipeline& p)
+void LiveSource::willProcess(const mrpt::obs::CObservation&,
+                             pipeline::MappingPipeline& p)
 {
 	if (!current_.scan) return;
 	std::lock_guard<std::mutex> lk(mu_);
@@ -151,13 +151,13 @@ void LiveSource::willProcess(const mrpt::obs::CObservation&, pipeline::MappingPi
 }
 
 void LiveSource::processed(const mrpt::obs::CObservation&,
-						   const pipeline::MappingPipeline& p)
+                           const pipeline::MappingPipeline& p)
 {
 	if (current_.scan)
 	{
 		const double ms = std::chrono::duration<double, std::milli>(
-							  SteadyClock::now() - current_.captured)
-							  .count();
+		                      SteadyClock::now() - current_.captured)
+		                      .count();
 		std::lock_guard<std::mutex> lk(mu_);
 		stats_.scans_processed++;
 		stats_.scans_light = p.stats().scans_light;
@@ -199,8 +199,8 @@ std::string LiveSource::statusLine() const
 	os << std::fixed << std::setprecision(0) << "scans " << s.scans_processed
 	   << " (light " << s.scans_light << ", dropped " << s.scans_dropped
 	   << ") | latency median " << lat.median << " ms, max " << lat.max
-	   << " ms | queue " << s.queue_now << " | recorded " << s.recorded << " obs, "
-	   << std::setprecision(1) << s.recorded_bytes / 1e6 << " MB";
+	   << " ms | queue " << s.queue_now << " | recorded " << s.recorded
+	   << " obs, " << std::setprecision(1) << s.recorded_bytes / 1e6 << " MB";
 	return os.str();
 }
 
@@ -208,8 +208,8 @@ void LiveSource::maybePrintStatus(bool force)
 {
 	const double period = cfg_.online.status_period_s;
 	if (!force && (period <= 0 || std::chrono::duration<double>(
-									  SteadyClock::now() - last_status_)
-										  .count() < period))
+	                                  SteadyClock::now() - last_status_)
+	                                      .count() < period))
 		return;
 	last_status_ = SteadyClock::now();
 	FS_LOG_INFO("status: " << statusLine());
@@ -220,26 +220,33 @@ std::vector<std::string> LiveSource::writeOutputs(const std::string& out_dir)
 	const auto s = stats();
 	const auto lat = Spread::of(s.latency_ms);
 	const std::string path = out_dir + "/online_stats.json";
-	core::writeFileAtomically(path, [&](std::ostream& os) {
-		os << "{\n  \"observations_captured\": " << s.observations_captured
-		   << ",\n  \"observations_recorded\": " << s.recorded
-		   << ",\n  \"recorded_bytes\": " << s.recorded_bytes
-		   << ",\n  \"recording_error\": \"" << jsonText(recording_error_) << "\",\n  \"scans_captured\": " << s.scans_captured
-		   << ",\n  \"scans_processed\": " << s.scans_processed
-		   << ",\n  \"scans_light\": " << s.scans_light
-		   << ",\n  \"scans_dropped\": " << s.scans_dropped
-		   << ",\n  \"queue_max_scans\": " << s.queue_max
-		   << ",\n  \"latency_ms\": {\"median\": " << lat.median << ", \"p95\": " << lat.p95
-		   << ", \"max\": " << lat.max << "},\n  \"sensors\": [";
-		for (size_t i = 0; i < grabbers_.size(); i++)
-		{
-			const auto& d = grabbers_[i]->declaration();
-			os << (i ? ", " : "") << "{\"section\": \"" << d.section << "\", \"driver\": \""
-			   << d.driver << "\", \"label\": \"" << d.label
-			   << "\", \"observations\": " << grabbers_[i]->observations() << "}";
-		}
-		os << "]\n}\n";
-	});
+	core::writeFileAtomically(
+	    path,
+	    [&](std::ostream& os)
+	    {
+		    os << "{\n  \"observations_captured\": " << s.observations_captured
+		       << ",\n  \"observations_recorded\": " << s.recorded
+		       << ",\n  \"recorded_bytes\": " << s.recorded_bytes
+		       << ",\n  \"recording_error\": \"" << jsonText(recording_error_)
+		       << "\",\n  \"scans_captured\": " << s.scans_captured
+		       << ",\n  \"scans_processed\": " << s.scans_processed
+		       << ",\n  \"scans_light\": " << s.scans_light
+		       << ",\n  \"scans_dropped\": " << s.scans_dropped
+		       << ",\n  \"queue_max_scans\": " << s.queue_max
+		       << ",\n  \"latency_ms\": {\"median\": " << lat.median
+		       << ", \"p95\": " << lat.p95 << ", \"max\": " << lat.max
+		       << "},\n  \"sensors\": [";
+		    for (size_t i = 0; i < grabbers_.size(); i++)
+		    {
+			    const auto& d = grabbers_[i]->declaration();
+			    os << (i ? ", " : "") << "{\"section\": \"" << d.section
+			       << "\", \"driver\": \"" << d.driver << "\", \"label\": \""
+			       << d.label
+			       << "\", \"observations\": " << grabbers_[i]->observations()
+			       << "}";
+		    }
+		    os << "]\n}\n";
+	    });
 	return {path};
 }
 

@@ -6,8 +6,8 @@
 
 namespace forest_slam::online
 {
-void OnlineOptions::loadFromConfigFile(
-	const mrpt::config::CConfigFileBase& c, const std::string& s)
+void OnlineOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
+                                       const std::string& s)
 {
 	FS_LOAD(c, s, light_above_queued_scans);
 	FS_LOAD(c, s, queue_capacity_scans);
@@ -16,22 +16,25 @@ void OnlineOptions::loadFromConfigFile(
 	FS_LOAD(c, s, record_flush_period_s);
 	FS_LOAD(c, s, idle_timeout_s);
 	const std::string where = core::configOrigin(c) + ": [" + s + "] ";
-	if (queue_capacity_scans < 1 || light_above_queued_scans >= queue_capacity_scans)
+	if (queue_capacity_scans < 1 ||
+	    light_above_queued_scans >= queue_capacity_scans)
 		throw core::ConfigError(
-			where + "need 0 <= light_above_queued_scans < queue_capacity_scans");
+		    where +
+		    "need 0 <= light_above_queued_scans < queue_capacity_scans");
 	if (record_compress_level < 0 || record_compress_level > 9)
-		throw core::ConfigError(where + "record_compress_level: expected 0..9, got " +
-								std::to_string(record_compress_level));
+		throw core::ConfigError(where +
+		                        "record_compress_level: expected 0..9, got " +
+		                        std::to_string(record_compress_level));
 	if (!(status_period_s >= 0) || !(record_flush_period_s > 0) ||
-		!(idle_timeout_s >= 0))
+	    !(idle_timeout_s >= 0))
 		throw core::ConfigError(
-			where +
-			"status_period_s and idle_timeout_s must be >= 0, "
-			"record_flush_period_s > 0");
+		    where +
+		    "status_period_s and idle_timeout_s must be >= 0, "
+		    "record_flush_period_s > 0");
 }
 
-void OnlineOptions::saveToConfigFile(
-	mrpt::config::CConfigFileBase& c, const std::string& s) const
+void OnlineOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
+                                     const std::string& s) const
 {
 	c.write(s, "light_above_queued_scans", light_above_queued_scans);
 	c.write(s, "queue_capacity_scans", queue_capacity_scans);
@@ -44,7 +47,7 @@ void OnlineOptions::saveToConfigFile(
 namespace
 {
 SensorDeclaration loadSensor(core::TrackedConfig& cfg, const std::string& sec,
-							 OnlineConfig& out)
+                             OnlineConfig& out)
 {
 	const std::string where = cfg.origin() + ": [" + sec + "] ";
 	SensorDeclaration d;
@@ -53,9 +56,9 @@ SensorDeclaration loadSensor(core::TrackedConfig& cfg, const std::string& sec,
 	d.sensor = mrpt::hwdrivers::CGenericSensor::createSensorPtr(d.driver);
 	if (!d.sensor)
 		throw core::ConfigError(
-			where + "driver = " + d.driver +
-			": not a sensor driver of this MRPT build (e.g. CVelodyneScanner, "
-			"CIMUXSens_MT4, CIMUIntersense, CGPSInterface, CGPS_NTRIP)");
+		    where + "driver = " + d.driver +
+		    ": not a sensor driver of this MRPT build (e.g. CVelodyneScanner, "
+		    "CIMUXSens_MT4, CIMUIntersense, CGPSInterface, CGPS_NTRIP)");
 	// The driver reads its own keys through the tracked config, so the
 	// strict check below knows exactly which keys it uses.
 	try
@@ -67,14 +70,14 @@ SensorDeclaration loadSensor(core::TrackedConfig& cfg, const std::string& sec,
 		std::string what = e.what();
 		if (what.size() > 400) what = what.substr(0, 400) + "...";
 		throw core::ConfigError(where + "driver " + d.driver +
-								" rejected its configuration: " + what);
+		                        " rejected its configuration: " + what);
 	}
 	d.process_rate_hz = d.sensor->getProcessRate();
 	if (!(d.process_rate_hz > 0))
 		throw core::ConfigError(where +
-								"process_rate: required (Hz, > 0), as in "
-								"rawlog-grabber (CVelodyneScanner: ~2000, to "
-								"poll every packet)");
+		                        "process_rate: required (Hz, > 0), as in "
+		                        "rawlog-grabber (CVelodyneScanner: ~2000, to "
+		                        "poll every packet)");
 	d.label = d.sensor->getSensorLabel();
 	if (d.driver == "CVelodyneScanner")
 	{
@@ -83,13 +86,14 @@ SensorDeclaration loadSensor(core::TrackedConfig& cfg, const std::string& sec,
 		d.output_labels = {d.label + "_SCAN", d.label + "_GPS"};
 		d.replays_file = !cfg.read_string(sec, "pcap_input", "").empty();
 		core::loadOption(cfg, sec, "udp_data_port", out.velodyne_data_port);
-		core::loadOption(cfg, sec, "udp_position_port", out.velodyne_position_port);
+		core::loadOption(cfg, sec, "udp_position_port",
+		                 out.velodyne_position_port);
 		for (int port : {out.velodyne_data_port, out.velodyne_position_port})
 			if (port < 1 || port > 65535)
 				throw core::ConfigError(where +
-										"udp_data_port / udp_position_port: "
-										"expected 1..65535, got " +
-										std::to_string(port));
+				                        "udp_data_port / udp_position_port: "
+				                        "expected 1..65535, got " +
+				                        std::to_string(port));
 	}
 	else
 		d.output_labels = {d.label};
@@ -109,14 +113,16 @@ OnlineConfig OnlineConfig::loadFile(const std::string& path)
 		// Look without reading: a read would mark any section as known.
 		std::vector<std::string> keys;
 		cfg.getAllKeys(sec, keys);
-		if (!std::count(keys.begin(), keys.end(), std::string("driver"))) continue;
+		if (!std::count(keys.begin(), keys.end(), std::string("driver")))
+			continue;
 		oc.sensors.push_back(loadSensor(cfg, sec, oc));
 		velodynes += oc.sensors.back().driver == "CVelodyneScanner";
 	}
 	if (velodynes > 1)
-		throw core::ConfigError(path +
-								": more than one CVelodyneScanner section: "
-								"MRPT's driver binds the same UDP ports for all");
+		throw core::ConfigError(
+		    path +
+		    ": more than one CVelodyneScanner section: "
+		    "MRPT's driver binds the same UDP ports for all");
 	oc.online.loadFromConfigFile(cfg, "online");
 	{
 		// Strict check of the sensor sections and [online] (MappingConfig
@@ -125,8 +131,8 @@ OnlineConfig OnlineConfig::loadFile(const std::string& path)
 		for (const auto& sec : sections)
 		{
 			const bool sensor = std::any_of(
-				oc.sensors.begin(), oc.sensors.end(),
-				[&](const SensorDeclaration& d) { return d.section == sec; });
+			    oc.sensors.begin(), oc.sensors.end(),
+			    [&](const SensorDeclaration& d) { return d.section == sec; });
 			if (!sensor && sec != "online") check.acceptSection(sec);
 		}
 		check.checkNoUnknownKeys();
@@ -135,30 +141,32 @@ OnlineConfig OnlineConfig::loadFile(const std::string& path)
 
 	if (oc.sensors.empty())
 		throw core::ConfigError(
-			path +
-			": no sensor section (a section with driver = <MRPT class>, "
-			"e.g. [VLP16] driver = CVelodyneScanner; see doc/online.md)");
+		    path +
+		    ": no sensor section (a section with driver = <MRPT class>, "
+		    "e.g. [VLP16] driver = CVelodyneScanner; see doc/online.md)");
 	std::vector<std::string> all_labels;
 	for (const auto& s : oc.sensors)
 	{
 		for (const auto& l : s.output_labels)
 			if (std::count(all_labels.begin(), all_labels.end(), l))
-				throw core::ConfigError(path + ": [" + s.section +
-										"] produces label '" + l +
-										"' like another sensor (set sensorLabel)");
+				throw core::ConfigError(
+				    path + ": [" + s.section + "] produces label '" + l +
+				    "' like another sensor (set sensorLabel)");
 		all_labels.insert(all_labels.end(), s.output_labels.begin(),
-						  s.output_labels.end());
+		                  s.output_labels.end());
 	}
 	const auto& lidar = oc.mapping.pipeline.lidar_label;
 	if (!std::count(all_labels.begin(), all_labels.end(), lidar))
 	{
 		std::string have;
 		for (const auto& l : all_labels) have += (have.empty() ? "" : ", ") + l;
-		throw core::ConfigError(path + ": [pipeline] lidar_label = " + lidar +
-								" matches no sensor's observations (the sensors "
-								"produce: " + have +
-								"; CVelodyneScanner appends _SCAN to its "
-								"sensorLabel)");
+		throw core::ConfigError(
+		    path + ": [pipeline] lidar_label = " + lidar +
+		    " matches no sensor's observations (the sensors "
+		    "produce: " +
+		    have +
+		    "; CVelodyneScanner appends _SCAN to its "
+		    "sensorLabel)");
 	}
 	return oc;
 }

@@ -7,12 +7,13 @@ namespace forest_slam::online
 {
 OnlineResult runOnline(const OnlineJob& job)
 {
-	pipeline::StopSignalScope signals;	// Ctrl-C during start-up counts too
+	pipeline::StopSignalScope signals;  // Ctrl-C during start-up counts too
 	const auto cfg = OnlineConfig::loadFile(job.config_path);
 	using mrpt::hwdrivers::CVelodyneScanner;
-	CVelodyneScanner::VELODYNE_DATA_UDP_PORT = static_cast<short>(cfg.velodyne_data_port);
+	CVelodyneScanner::VELODYNE_DATA_UDP_PORT =
+	    static_cast<short>(cfg.velodyne_data_port);
 	CVelodyneScanner::VELODYNE_POSITION_UDP_PORT =
-		static_cast<short>(cfg.velodyne_position_port);
+	    static_cast<short>(cfg.velodyne_position_port);
 
 	LiveSource source(cfg, job.out_dir);
 	source.start();

@@ -13,22 +13,24 @@
 
 namespace forest_slam::online
 {
-RawRecorder::RawRecorder(
-	const std::string& path, int compress_level, double flush_period_s)
-	: path_(path), gzip_(compress_level > 0), flush_period_s_(flush_period_s)
+RawRecorder::RawRecorder(const std::string& path, int compress_level,
+                         double flush_period_s)
+    : path_(path), gzip_(compress_level > 0), flush_period_s_(flush_period_s)
 {
 	std::error_code ec;
 	if (std::filesystem::exists(path, ec))
 		throw std::runtime_error(
-			"'" + path +
-			"' exists: a recording is never overwritten (choose another --out "
-			"or move it away)");
+		    "'" + path +
+		    "' exists: a recording is never overwritten (choose another --out "
+		    "or move it away)");
 	if (gzip_)
-		file_ = gzopen(path.c_str(), ("wb" + std::to_string(compress_level)).c_str());
+		file_ = gzopen(path.c_str(),
+		               ("wb" + std::to_string(compress_level)).c_str());
 	else
 		file_ = std::fopen(path.c_str(), "wb");
 	if (!file_)
-		throw std::runtime_error("cannot create '" + path + "': " + std::strerror(errno));
+		throw std::runtime_error("cannot create '" + path +
+		                         "': " + std::strerror(errno));
 	thread_ = std::thread([this] { run(); });
 }
 
@@ -74,27 +76,29 @@ void RawRecorder::writeBytes(const void* data, size_t n)
 {
 	bool ok;
 	if (gzip_)
-		ok = gzwrite(static_cast<gzFile>(file_), data, static_cast<unsigned>(n)) ==
-			 static_cast<int>(n);
+		ok = gzwrite(static_cast<gzFile>(file_), data,
+		             static_cast<unsigned>(n)) == static_cast<int>(n);
 	else
 		ok = std::fwrite(data, 1, n, static_cast<FILE*>(file_)) == n;
 	if (!ok)
-		throw std::runtime_error("writing '" + path_ + "' failed: " + std::strerror(errno));
+		throw std::runtime_error("writing '" + path_ +
+		                         "' failed: " + std::strerror(errno));
 }
 
 void RawRecorder::flush()
 {
 	// Z_SYNC_FLUSH ends the deflate block so that a follower can read it.
 	if (gzip_ ? gzflush(static_cast<gzFile>(file_), Z_SYNC_FLUSH) != Z_OK
-			  : std::fflush(static_cast<FILE*>(file_)) != 0)
-		throw std::runtime_error("flushing '" + path_ + "' failed: " + std::strerror(errno));
+	          : std::fflush(static_cast<FILE*>(file_)) != 0)
+		throw std::runtime_error("flushing '" + path_ +
+		                         "' failed: " + std::strerror(errno));
 }
 
 void RawRecorder::run()
 {
 	using Clock = std::chrono::steady_clock;
 	const auto period = std::chrono::duration_cast<Clock::duration>(
-		std::chrono::duration<double>(flush_period_s_));
+	    std::chrono::duration<double>(flush_period_s_));
 	auto last_flush = Clock::now();
 	bool dirty = false;
 	mrpt::io::CMemoryStream mem;

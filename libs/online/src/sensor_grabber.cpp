@@ -8,11 +8,14 @@
 namespace forest_slam::online
 {
 SensorGrabber::SensorGrabber(SensorDeclaration decl, Sink sink)
-	: decl_(std::move(decl)), sink_(std::move(sink))
+    : decl_(std::move(decl)), sink_(std::move(sink))
 {
 }
 
-SensorGrabber::~SensorGrabber() { stop(); }
+SensorGrabber::~SensorGrabber()
+{
+	stop();
+}
 
 void SensorGrabber::start()
 {
@@ -24,12 +27,12 @@ void SensorGrabber::start()
 	{
 		std::string what = e.what();
 		if (what.size() > 400) what = what.substr(0, 400) + "...";
-		throw std::runtime_error("sensor [" + decl_.section + "] (" + decl_.driver +
-								 ") failed to start: " + what);
+		throw std::runtime_error("sensor [" + decl_.section + "] (" +
+		                         decl_.driver + ") failed to start: " + what);
 	}
 	FS_LOG_INFO("sensor [" << decl_.section << "] " << decl_.driver << " '"
-						   << decl_.label << "' grabbing at "
-						   << decl_.process_rate_hz << " Hz");
+	                       << decl_.label << "' grabbing at "
+	                       << decl_.process_rate_hz << " Hz");
 	thread_ = std::thread([this] { run(); });
 }
 
@@ -43,7 +46,7 @@ void SensorGrabber::run()
 {
 	using mrpt::hwdrivers::CGenericSensor;
 	const auto period = std::chrono::duration_cast<SteadyClock::duration>(
-		std::chrono::duration<double>(1.0 / decl_.process_rate_hz));
+	    std::chrono::duration<double>(1.0 / decl_.process_rate_hz));
 	auto& sensor = *decl_.sensor;
 	while (!stop_)
 	{
@@ -55,22 +58,24 @@ void SensorGrabber::run()
 		catch (const std::exception& e)
 		{
 			core::logOnce(core::LogLevel::Error, "grab:" + decl_.section,
-						  "sensor [" + decl_.section + "] " + decl_.driver +
-							  ": " + e.what() + " (further errors not shown)");
+			              "sensor [" + decl_.section + "] " + decl_.driver +
+			                  ": " + e.what() + " (further errors not shown)");
 		}
 		CGenericSensor::TListObservations objs;
 		sensor.getObservations(objs);
 		const auto now = SteadyClock::now();
 		for (const auto& [stamp, obj] : objs)
-			if (auto obs = std::dynamic_pointer_cast<mrpt::obs::CObservation>(obj))
+			if (auto obs =
+			        std::dynamic_pointer_cast<mrpt::obs::CObservation>(obj))
 			{
 				sink_(obs, now);
 				observations_++;
 			}
 		if (decl_.replays_file && sensor.getState() == CGenericSensor::ssError)
 		{
-			exhausted_ = true;	// pcap_read_once: end of the capture
-			FS_LOG_INFO("sensor [" << decl_.section << "]: end of the replayed file");
+			exhausted_ = true;  // pcap_read_once: end of the capture
+			FS_LOG_INFO("sensor [" << decl_.section
+			                       << "]: end of the replayed file");
 			return;
 		}
 		std::this_thread::sleep_until(t0 + period);

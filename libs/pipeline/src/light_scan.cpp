@@ -13,13 +13,14 @@ namespace forest_slam::pipeline
 {
 bool MappingPipeline::processLightScan(const mrpt::obs::CObservation& scan)
 {
-	if (cfg_.pipeline.poseSource() != PoseSource::Odometry || trajectory_.size() < 2)
+	if (cfg_.pipeline.poseSource() != PoseSource::Odometry ||
+	    trajectory_.size() < 2)
 		return false;
 	const double stamp = mrpt::Clock::toDouble(scan.timestamp);
 	const auto& a = trajectory_[trajectory_.size() - 2];
 	const auto& b = trajectory_.back();
 	if (!std::isfinite(stamp) || stamp <= b.t_s ||
-		(have_last_scan_ && stamp <= last_scan_stamp_s_) || !(b.t_s > a.t_s))
+	    (have_last_scan_ && stamp <= last_scan_stamp_s_) || !(b.t_s > a.t_s))
 		return false;  // the full path counts and reports it
 	stats_.scans_in++;
 	stats_.scans_light++;
@@ -28,8 +29,9 @@ bool MappingPipeline::processLightScan(const mrpt::obs::CObservation& scan)
 	stats_.last_stamp_s = stamp;
 	const Eigen::Isometry3d step = a.pose.inverse() * b.pose;
 	trajectory_.push_back(
-		{stamp, b.pose * core::interpolateIsometry(Eigen::Isometry3d::Identity(), step,
-												   (stamp - b.t_s) / (b.t_s - a.t_s))});
+	    {stamp, b.pose * core::interpolateIsometry(
+	                         Eigen::Isometry3d::Identity(), step,
+	                         (stamp - b.t_s) / (b.t_s - a.t_s))});
 	return true;
 }
 

@@ -26,7 +26,8 @@ MappingConfig MappingConfig::load(core::TrackedConfig& cfg)
 	{
 		std::vector<std::string> keys;
 		cfg.getAllKeys(s, keys);
-		if (s == "online" || std::count(keys.begin(), keys.end(), std::string("driver")))
+		if (s == "online" ||
+		    std::count(keys.begin(), keys.end(), std::string("driver")))
 			cfg.acceptSection(s);
 	}
 	cfg.checkNoUnknownKeys();

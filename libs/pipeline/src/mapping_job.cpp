@@ -235,6 +235,12 @@ MappingResult runMapping(const MappingJob& job, const MappingConfig& cfg,
 		pipeline.process(obs);
 		source.processed(*obs, pipeline);
 	}
+	if (g_stop_signal && !result.interrupted)  // arrived while next() waited
+	{
+		result.interrupted = true;
+		FS_LOG_WARN("signal " << g_stop_signal.load()
+							  << " received: stopped, writing outputs");
+	}
 	source.finish(pipeline);
 	result.stats = pipeline.stats();
 	result.wall_seconds = std::chrono::duration<double>(

@@ -12,7 +12,7 @@ namespace forest_slam::ingest
 {
 struct PcapUdpDatagram
 {
-	int64_t stamp_ns = 0;  ///< capture time, UNIX ns
+	int64_t stamp_ns = 0;             ///< capture time, UNIX ns
 	uint32_t src_ip = 0, dst_ip = 0;  ///< host byte order
 	uint16_t src_port = 0, dst_port = 0;
 	std::vector<uint8_t> payload;

@@ -57,9 +57,9 @@ class RawlogFollower
 	FollowOptions opts_;
 	void* gz_ = nullptr;  // gzFile: reads plain files transparently
 	bool gzip_ = false, done_ = false, stopped_ = false;
-	std::vector<uint8_t> buf_;	///< decompressed bytes not yet consumed
-	size_t pos_ = 0;			///< parse position in buf_
-	uint64_t base_offset_ = 0;	///< stream offset of buf_[0]
+	std::vector<uint8_t> buf_;  ///< decompressed bytes not yet consumed
+	size_t pos_ = 0;            ///< parse position in buf_
+	uint64_t base_offset_ = 0;  ///< stream offset of buf_[0]
 	uint64_t records_ = 0, observations_ = 0;
 	std::deque<mrpt::obs::CObservation::Ptr> pending_;
 	std::string last_parse_error_;

@@ -23,12 +23,14 @@ struct LiveStats
 {
 	uint64_t observations_captured = 0;
 	uint64_t scans_captured = 0;
-	uint64_t scans_processed = 0;  ///< went through the pipeline (full or light)
+	uint64_t scans_processed =
+	    0;  ///< went through the pipeline (full or light)
 	uint64_t scans_light = 0;
-	uint64_t scans_dropped = 0;	 ///< from the pipeline's queue, not the recording
-	uint64_t queue_max = 0;		 ///< most scans ever waiting
+	uint64_t scans_dropped =
+	    0;                   ///< from the pipeline's queue, not the recording
+	uint64_t queue_max = 0;  ///< most scans ever waiting
 	uint64_t queue_now = 0;
-	std::vector<double> latency_ms;	 ///< capture -> pose, per processed scan
+	std::vector<double> latency_ms;  ///< capture -> pose, per processed scan
 	uint64_t recorded = 0, recorded_bytes = 0;
 };
 
@@ -53,9 +55,10 @@ class LiveSource : public pipeline::ObservationSource
 
 	mrpt::obs::CObservation::Ptr next() override;
 	bool drainOnStop() const override { return true; }
-	void willProcess(const mrpt::obs::CObservation& obs, pipeline::MappingPipeline& p) override;
+	void willProcess(const mrpt::obs::CObservation& obs,
+	                 pipeline::MappingPipeline& p) override;
 	void processed(const mrpt::obs::CObservation& obs,
-				   const pipeline::MappingPipeline& p) override;
+	               const pipeline::MappingPipeline& p) override;
 	void finish(const pipeline::MappingPipeline& p) override;
 	/** online_stats.json (latency, queue, drops, recording). */
 	std::vector<std::string> writeOutputs(const std::string& out_dir) override;
@@ -87,7 +90,8 @@ class LiveSource : public pipeline::ObservationSource
 	Item current_;
 	std::string recording_error_;
 
-	void onObservation(const mrpt::obs::CObservation::Ptr& obs, SteadyClock::time_point t);
+	void onObservation(const mrpt::obs::CObservation::Ptr& obs,
+	                   SteadyClock::time_point t);
 	void stopGrabbing();
 	bool allExhausted() const;
 	void maybePrintStatus(bool force = false);

@@ -39,9 +39,9 @@ struct OnlineOptions : public mrpt::config::CLoadableOptions
 	double idle_timeout_s = 0;
 
 	void loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
-							const std::string& section) override;
+	                        const std::string& section) override;
 	void saveToConfigFile(mrpt::config::CConfigFileBase& c,
-						  const std::string& section) const override;
+	                      const std::string& section) const override;
 };
 
 /** One sensor section: the MRPT driver, configured, not yet initialized. */
@@ -52,7 +52,7 @@ struct SensorDeclaration
 	/** Labels of the observations this sensor produces (CVelodyneScanner:
 	 * "<label>_SCAN" and "<label>_GPS"). */
 	std::vector<std::string> output_labels;
-	bool replays_file = false;	///< e.g. CVelodyneScanner pcap_input
+	bool replays_file = false;  ///< e.g. CVelodyneScanner pcap_input
 	std::shared_ptr<mrpt::hwdrivers::CGenericSensor> sensor;
 };
 

@@ -22,8 +22,9 @@ class RawRecorder
 	/** Throws std::runtime_error naming the path if it exists (a previous
 	 * recording is never overwritten) or cannot be created.
 	 * compress_level 0 = plain rawlog, 1..9 gzip. */
-	RawRecorder(const std::string& path, int compress_level, double flush_period_s);
-	~RawRecorder();	 ///< close()
+	RawRecorder(const std::string& path, int compress_level,
+	            double flush_period_s);
+	~RawRecorder();  ///< close()
 	RawRecorder(const RawRecorder&) = delete;
 	RawRecorder& operator=(const RawRecorder&) = delete;
 
@@ -33,14 +34,14 @@ class RawRecorder
 	 * (disk full...) seen by the writer thread. */
 	void close();
 
-	uint64_t recorded() const;	///< observations on disk
+	uint64_t recorded() const;  ///< observations on disk
 	uint64_t bytes() const;
 	size_t queued() const;
 	const std::string& path() const { return path_; }
 
    private:
 	std::string path_;
-	void* file_ = nullptr;	// FILE* (plain) or gzFile
+	void* file_ = nullptr;  // FILE* (plain) or gzFile
 	bool gzip_;
 	double flush_period_s_;
 	mutable std::mutex mu_;

@@ -20,7 +20,7 @@ class SensorGrabber
 {
    public:
 	using Sink = std::function<void(const mrpt::obs::CObservation::Ptr&,
-									SteadyClock::time_point captured)>;
+	                                SteadyClock::time_point captured)>;
 	SensorGrabber(SensorDeclaration decl, Sink sink);
 	~SensorGrabber();  ///< stop()
 	SensorGrabber(const SensorGrabber&) = delete;

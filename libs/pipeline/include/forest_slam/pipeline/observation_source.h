@@ -31,14 +31,14 @@ class ObservationSource
 	/** Called before each observation enters the pipeline (online: light
 	 * scans while the pipeline is behind). */
 	virtual void willProcess(const mrpt::obs::CObservation& /*obs*/,
-							 MappingPipeline& /*p*/)
+	                         MappingPipeline& /*p*/)
 	{
 	}
 
 	/** Called after each observation went through the pipeline (progress,
 	 * status line, latency). */
 	virtual void processed(const mrpt::obs::CObservation& /*obs*/,
-						   const MappingPipeline& /*p*/)
+	                       const MappingPipeline& /*p*/)
 	{
 	}
 
@@ -47,7 +47,8 @@ class ObservationSource
 
 	/** Writes the source's own files (e.g. the online recording's
 	 * statistics) into out_dir; returns the paths written. */
-	virtual std::vector<std::string> writeOutputs(const std::string& /*out_dir*/)
+	virtual std::vector<std::string> writeOutputs(
+	    const std::string& /*out_dir*/)
 	{
 		return {};
 	}
