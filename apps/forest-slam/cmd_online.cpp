@@ -54,6 +54,9 @@ int cmdOnline(const std::vector<std::string>& args, const char* usage)
 	std::printf(
 	    "latency capture -> pose: median %.0f ms, p95 %.0f ms, max %.0f ms\n",
 	    lat.median, lat.p95, lat.max);
+	if (r.live.velodyne_packets > 0)
+		std::printf("velodyne data packets in the scans: %llu\n",
+		            (unsigned long long)r.live.velodyne_packets);
 	std::printf(
 	    "recorded: %llu of %llu observations (%.1f MB) to %s/raw.rawlog\n",
 	    (unsigned long long)r.live.recorded,

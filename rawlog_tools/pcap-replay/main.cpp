@@ -51,6 +51,18 @@ extern "C" void onSignal(int)
 	g_stop = true;
 }
 
+/** Later passes of --loop: the data packet's microsecond counter (bytes
+ * 1200..1203, microseconds past the hour) moves on with the replay, so the
+ * sensor's time never runs backwards between passes. */
+void shiftSensorClock(std::vector<uint8_t>& packet, int64_t offset_ns)
+{
+	uint8_t* p = packet.data() + 1200;
+	const uint64_t us = uint64_t(p[0]) | uint64_t(p[1]) << 8 |
+	                    uint64_t(p[2]) << 16 | uint64_t(p[3]) << 24;
+	const uint64_t shifted = (us + uint64_t(offset_ns / 1000)) % 3600000000ull;
+	for (int i = 0; i < 4; i++) p[i] = uint8_t(shifted >> (8 * i));
+}
+
 int usageError(const std::string& msg)
 {
 	std::cerr << "pcap-replay: " << msg << "\n\n" << kUsage;
@@ -73,6 +85,7 @@ int main(int argc, char** argv)
 	double rate = 1.0;
 	uint16_t data_port = kVelodyneDataPort, pos_port = kVelodynePositionPort;
 	bool quiet = false;
+	int loops = 1;
 	const std::vector<std::string> args(argv + 1, argv + argc);
 	for (size_t i = 0; i < args.size(); i++)
 	{
@@ -100,6 +113,16 @@ int main(int argc, char** argv)
 				return usageError("--rate expects a number >= 0, got '" + v +
 				                  "'");
 		}
+		else if (a == "--loop")
+		{
+			char* end = nullptr;
+			const std::string& v = args[++i];
+			const long n = std::strtol(v.c_str(), &end, 10);
+			if (v.empty() || *end || n < 1 || n > 1000000)
+				return usageError("--loop expects a count >= 1, got '" + v +
+				                  "'");
+			loops = static_cast<int>(n);
+		}
 		else if (a == "--data-port" || a == "--position-port")
 		{
 			if (!parsePort(args[++i],
@@ -120,50 +143,60 @@ int main(int argc, char** argv)
 	std::signal(SIGTERM, onSignal);
 	try
 	{
-		forest_slam::ingest::PcapFile file(pcap);
 		const int sock = ::socket(AF_INET, SOCK_DGRAM, 0);
 		if (sock < 0)
 			throw std::runtime_error(std::string("socket: ") +
 			                         std::strerror(errno));
 		using Clock = std::chrono::steady_clock;
 		forest_slam::ingest::PcapUdpDatagram d;
-		uint64_t data = 0, position = 0, other = 0;
+		uint64_t data = 0, position = 0, other = 0, skipped = 0;
 		double max_late_ms = 0;
-		int64_t first_ns = 0;
+		int64_t first_ns = 0, last_ns = 0, loop_offset_ns = 0;
 		bool first = true;
 		const auto start = Clock::now();
-		while (!g_stop && file.nextUdp(d))
+		for (int pass = 0; pass < loops && !g_stop; pass++)
 		{
-			uint16_t port = 0;
-			if (d.dst_port == kVelodyneDataPort)
-				port = data_port;
-			else if (d.dst_port == kVelodynePositionPort)
-				port = pos_port;
-			else
+			forest_slam::ingest::PcapFile file(pcap);
+			// Each pass starts one 10 ms step after the previous one ended.
+			if (pass > 0) loop_offset_ns += last_ns - first_ns + 10000000;
+			while (!g_stop && file.nextUdp(d))
 			{
-				other++;
-				continue;
+				uint16_t port = 0;
+				if (d.dst_port == kVelodyneDataPort)
+					port = data_port;
+				else if (d.dst_port == kVelodynePositionPort)
+					port = pos_port;
+				else
+				{
+					other++;
+					continue;
+				}
+				if (first) first_ns = d.stamp_ns, first = false;
+				if (pass == 0) last_ns = d.stamp_ns;
+				if (rate > 0)
+				{
+					const auto due =
+					    start +
+					    std::chrono::nanoseconds(static_cast<int64_t>(
+					        (d.stamp_ns - first_ns + loop_offset_ns) / rate));
+					std::this_thread::sleep_until(due);
+					max_late_ms = std::max(
+					    max_late_ms, std::chrono::duration<double, std::milli>(
+					                     Clock::now() - due)
+					                     .count());
+				}
+				if (pass > 0 && port == data_port && d.payload.size() == 1206)
+					shiftSensorClock(d.payload, loop_offset_ns);
+				dst.sin_port = htons(port);
+				if (::sendto(sock, d.payload.data(), d.payload.size(), 0,
+				             reinterpret_cast<const sockaddr*>(&dst),
+				             sizeof(dst)) < 0)
+					throw std::runtime_error("sendto " + host + ":" +
+					                         std::to_string(port) + ": " +
+					                         std::strerror(errno));
+				(port == data_port ? data : position)++;
 			}
-			if (first) first_ns = d.stamp_ns, first = false;
-			if (rate > 0)
-			{
-				const auto due =
-				    start + std::chrono::nanoseconds(static_cast<int64_t>(
-				                (d.stamp_ns - first_ns) / rate));
-				std::this_thread::sleep_until(due);
-				max_late_ms = std::max(
-				    max_late_ms, std::chrono::duration<double, std::milli>(
-				                     Clock::now() - due)
-				                     .count());
-			}
-			dst.sin_port = htons(port);
-			if (::sendto(sock, d.payload.data(), d.payload.size(), 0,
-			             reinterpret_cast<const sockaddr*>(&dst),
-			             sizeof(dst)) < 0)
-				throw std::runtime_error("sendto " + host + ":" +
-				                         std::to_string(port) + ": " +
-				                         std::strerror(errno));
-			(port == data_port ? data : position)++;
+			skipped += file.skipped();
 		}
 		::close(sock);
 		if (!quiet)
@@ -175,8 +208,7 @@ int main(int argc, char** argv)
 			    host.c_str(),
 			    std::chrono::duration<double>(Clock::now() - start).count(),
 			    rate, max_late_ms, (unsigned long long)other,
-			    (unsigned long long)file.skipped(),
-			    g_stop ? " (interrupted)" : "");
+			    (unsigned long long)skipped, g_stop ? " (interrupted)" : "");
 		return 0;
 	}
 	catch (const std::exception& e)

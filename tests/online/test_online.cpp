@@ -137,7 +137,13 @@ void checkRun(const std::string& ini, const std::string& out, bool interrupted)
 	                       (interrupted ? "true" : "false")),
 	          std::string::npos)
 	    << summary;
+	size_t packets = 0;
+	for (const auto& rev : expected) packets += rev.size();
 	const auto stats = slurp(out + "/online_stats.json");
+	EXPECT_NE(
+	    stats.find("\"velodyne_packets\": " + std::to_string(packets) + ","),
+	    std::string::npos)
+	    << stats;
 	EXPECT_NE(stats.find("\"scans_dropped\": 0,"), std::string::npos) << stats;
 	EXPECT_NE(stats.find("\"scans_processed\": " + std::to_string(scans)),
 	          std::string::npos)
@@ -285,6 +291,12 @@ TEST(OnlineConfig, StrictAboutSensorKeysLabelsAndDrivers)
 	    "lidar_label = L_SCAN\n",
 	    "process_rate");
 	expectError("[pipeline]\nlidar_label = x\n", "no sensor section");
+	// The shipped example loads (its sensor is only opened by start()).
+	const auto shipped = online::OnlineConfig::loadFile("ini/live-vlp16.ini");
+	ASSERT_EQ(shipped.sensors.size(), 1u);
+	EXPECT_EQ(shipped.sensors[0].driver, "CVelodyneScanner");
+	EXPECT_EQ(shipped.velodyne_data_port, 2368);
+	EXPECT_NO_THROW(pipeline::MappingConfig::loadFile("ini/live-vlp16.ini"));
 	// The offline mapping config accepts the same INI (re-runs of raw.rawlog).
 	std::ofstream(dir + "/c.ini")
 	    << vlp

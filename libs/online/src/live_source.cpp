@@ -3,6 +3,8 @@
 #include <forest_slam/online/live_source.h>
 #include <forest_slam/pipeline/mapping_pipeline.h>
 
+#include <mrpt/obs/CObservationVelodyneScan.h>
+
 #include <algorithm>
 #include <cstdio>
 #include <iomanip>
@@ -69,9 +71,12 @@ void LiveSource::onObservation(const mrpt::obs::CObservation::Ptr& obs,
 {
 	recorder_->record(obs);  // first, and unconditionally
 	const bool scan = obs->sensorLabel == cfg_.mapping.pipeline.lidar_label;
+	const auto* vel =
+	    dynamic_cast<const mrpt::obs::CObservationVelodyneScan*>(obs.get());
 	{
 		std::lock_guard<std::mutex> lk(mu_);
 		stats_.observations_captured++;
+		if (vel) stats_.velodyne_packets += vel->scan_packets.size();
 		last_arrival_ = t;
 		if (scan)
 		{
@@ -228,7 +233,8 @@ std::vector<std::string> LiveSource::writeOutputs(const std::string& out_dir)
 		       << ",\n  \"observations_recorded\": " << s.recorded
 		       << ",\n  \"recorded_bytes\": " << s.recorded_bytes
 		       << ",\n  \"recording_error\": \"" << jsonText(recording_error_)
-		       << "\",\n  \"scans_captured\": " << s.scans_captured
+		       << "\",\n  \"velodyne_packets\": " << s.velodyne_packets
+		       << ",\n  \"scans_captured\": " << s.scans_captured
 		       << ",\n  \"scans_processed\": " << s.scans_processed
 		       << ",\n  \"scans_light\": " << s.scans_light
 		       << ",\n  \"scans_dropped\": " << s.scans_dropped

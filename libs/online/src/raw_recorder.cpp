@@ -173,6 +173,9 @@ void RawRecorder::close()
 		rc = std::fclose(static_cast<FILE*>(file_));
 	file_ = nullptr;
 	closed_ = true;
+	// Nothing recorded (a sensor failed to start): leave no empty file that
+	// would block the next run into the same folder.
+	if (recorded_ == 0 && rc == 0 && error_.empty()) std::remove(path_.c_str());
 	if (rc != 0 && error_.empty())
 		error_ = "closing '" + path_ + "' failed: " + std::strerror(errno);
 	if (!error_.empty()) throw std::runtime_error(error_);

@@ -50,7 +50,20 @@ void MappingPipeline::process(const mrpt::obs::CObservation::Ptr& obs)
 			// Our decoder, not MRPT 2.5.8's fromVelodyne(), which drops half
 			// of the returns (see doc/ingest.md).
 			mrpt::obs::CObservationRotatingScan converted;
-			ingest::velodyneToRotatingScan(*vel, converted);
+			try
+			{
+				ingest::velodyneToRotatingScan(*vel, converted);
+			}
+			catch (const std::exception& e)
+			{
+				stats_.scans_in++;
+				stats_.scans_unreadable++;
+				core::logOnce(core::LogLevel::Warn, "velodyne-unreadable",
+							  "Velodyne scan " + std::to_string(stats_.scans_in - 1) +
+								  " cannot be decoded: " + e.what() +
+								  " (skipped; further such scans counted)");
+				return;
+			}
 			processScan(converted);
 		}
 		else

@@ -32,6 +32,9 @@ struct LiveStats
 	uint64_t queue_now = 0;
 	std::vector<double> latency_ms;  ///< capture -> pose, per processed scan
 	uint64_t recorded = 0, recorded_bytes = 0;
+	/** Velodyne data packets in the captured scans (compare with what the
+	 * sensor sent: UDP loss before the driver is invisible otherwise). */
+	uint64_t velodyne_packets = 0;
 };
 
 /** Median / p95 / max of a sample (0 when empty). */

@@ -30,7 +30,8 @@ class RawRecorder
 
 	/** Thread-safe, never blocks on I/O. */
 	void record(const mrpt::obs::CObservation::Ptr& obs);
-	/** Writes everything queued, flushes and closes. Rethrows a write error
+	/** Writes everything queued, flushes and closes (removes the file if
+	 * nothing was recorded). Rethrows a write error
 	 * (disk full...) seen by the writer thread. */
 	void close();
 
