@@ -1,6 +1,7 @@
 #include <forest_slam/online/online_config.h>
 
-#include <mrpt/hwdrivers/CGenericSensor.h>
+#include <mrpt/core/bits_math.h>
+#include <mrpt/hwdrivers/CVelodyneScanner.h>
 
 #include <algorithm>
 
@@ -46,6 +47,43 @@ void OnlineOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
 
 namespace
 {
+/** Our receiver's settings from the driver's configuration. */
+std::shared_ptr<VelodyneUdpSettings> velodyneUdpSettings(
+    const mrpt::config::CConfigFileBase& cfg, const std::string& sec,
+    const SensorDeclaration& d, const OnlineConfig& out)
+{
+	using mrpt::hwdrivers::CVelodyneScanner;
+	const auto& v = dynamic_cast<const CVelodyneScanner&>(*d.sensor);
+	auto s = std::make_shared<VelodyneUdpSettings>();
+	s->label = d.label;
+	s->device_ip = v.getDeviceIP();
+	s->data_port = out.velodyne_data_port;
+	s->position_port = out.velodyne_position_port;
+	s->pos_packets_min_period_s = v.getPosPacketsMinPeriod();
+	s->pos_packets_timing_timeout_s = v.getPosPacketsTimingTimeout();
+	const std::string model =
+	    mrpt::typemeta::TEnumType<CVelodyneScanner::model_t>::value2name(
+	        v.getModelName());
+	s->calibration = v.getCalibration();
+	if (s->calibration.empty())
+		s->calibration =
+		    mrpt::obs::VelodyneCalibration::LoadDefaultCalibration(model);
+	if (s->calibration.empty())
+		throw core::ConfigError(core::configOrigin(cfg) + ": [" + sec +
+		                        "] no calibration for model " + model +
+		                        " (set calibration_file)");
+	const auto& props = CVelodyneScanner::TModelPropertiesFactory::get();
+	if (const auto it = props.find(v.getModelName()); it != props.end())
+		s->max_range_m = it->second.maxRange;
+	s->sensor_pose = mrpt::poses::CPose3D(
+	    cfg.read_double(sec, "pose_x", 0), cfg.read_double(sec, "pose_y", 0),
+	    cfg.read_double(sec, "pose_z", 0),
+	    mrpt::DEG2RAD(cfg.read_double(sec, "pose_yaw", 0)),
+	    mrpt::DEG2RAD(cfg.read_double(sec, "pose_pitch", 0)),
+	    mrpt::DEG2RAD(cfg.read_double(sec, "pose_roll", 0)));
+	return s;
+}
+
 SensorDeclaration loadSensor(core::TrackedConfig& cfg, const std::string& sec,
                              OnlineConfig& out)
 {
@@ -94,6 +132,14 @@ SensorDeclaration loadSensor(core::TrackedConfig& cfg, const std::string& sec,
 				                        "udp_data_port / udp_position_port: "
 				                        "expected 1..65535, got " +
 				                        std::to_string(port));
+		std::string receiver = "forest-slam";
+		core::loadOption(cfg, sec, "udp_receiver", receiver);
+		if (receiver != "forest-slam" && receiver != "mrpt")
+			throw core::ConfigError(
+			    where + "udp_receiver: expected forest-slam or mrpt, got '" +
+			    receiver + "'");
+		if (receiver == "forest-slam" && !d.replays_file)
+			d.velodyne_udp = velodyneUdpSettings(cfg, sec, d, out);
 	}
 	else
 		d.output_labels = {d.label};

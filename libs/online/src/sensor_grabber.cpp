@@ -21,7 +21,13 @@ void SensorGrabber::start()
 {
 	try
 	{
-		decl_.sensor->initialize();
+		if (decl_.velodyne_udp)
+		{
+			udp_ = std::make_unique<VelodyneUdpReceiver>(*decl_.velodyne_udp);
+			udp_->open();
+		}
+		else
+			decl_.sensor->initialize();
 	}
 	catch (const std::exception& e)
 	{
@@ -30,16 +36,35 @@ void SensorGrabber::start()
 		throw std::runtime_error("sensor [" + decl_.section + "] (" +
 		                         decl_.driver + ") failed to start: " + what);
 	}
-	FS_LOG_INFO("sensor [" << decl_.section << "] " << decl_.driver << " '"
-	                       << decl_.label << "' grabbing at "
-	                       << decl_.process_rate_hz << " Hz");
+	if (udp_)
+		FS_LOG_INFO("sensor [" << decl_.section << "] " << decl_.driver << " '"
+		                       << decl_.label << "': UDP ports "
+		                       << decl_.velodyne_udp->data_port << "/"
+		                       << decl_.velodyne_udp->position_port
+		                       << ", forest-slam receiver, grabbing at "
+		                       << decl_.process_rate_hz << " Hz");
+	else
+		FS_LOG_INFO("sensor [" << decl_.section << "] " << decl_.driver << " '"
+		                       << decl_.label << "' grabbing at "
+		                       << decl_.process_rate_hz << " Hz");
 	thread_ = std::thread([this] { run(); });
 }
 
 void SensorGrabber::stop()
 {
 	stop_ = true;
-	if (thread_.joinable()) thread_.join();
+	if (!thread_.joinable()) return;
+	thread_.join();
+	if (udp_)
+	{
+		std::vector<mrpt::obs::CObservation::Ptr> last;
+		udp_->flush(last);
+		for (const auto& o : last)
+		{
+			sink_(o, SteadyClock::now());
+			observations_++;
+		}
+	}
 }
 
 void SensorGrabber::run()
@@ -48,9 +73,30 @@ void SensorGrabber::run()
 	const auto period = std::chrono::duration_cast<SteadyClock::duration>(
 	    std::chrono::duration<double>(1.0 / decl_.process_rate_hz));
 	auto& sensor = *decl_.sensor;
+	std::vector<mrpt::obs::CObservation::Ptr> received;
 	while (!stop_)
 	{
 		const auto t0 = SteadyClock::now();
+		if (udp_)
+		{
+			received.clear();
+			try
+			{
+				udp_->receive(20, received);  // waits for packets, takes all
+			}
+			catch (const std::exception& e)
+			{
+				core::logOnce(core::LogLevel::Error, "grab:" + decl_.section,
+				              "sensor [" + decl_.section + "]: " + e.what());
+			}
+			const auto now = SteadyClock::now();
+			for (const auto& o : received)
+			{
+				sink_(o, now);
+				observations_++;
+			}
+			continue;
+		}
 		try
 		{
 			sensor.doProcess();

@@ -5,6 +5,7 @@
 // of an offline run. Keys are checked strictly: the driver's keys are those
 // the MRPT driver itself reads, so a typo is an error naming the key.
 #include <forest_slam/core/config.h>
+#include <forest_slam/online/velodyne_udp.h>
 #include <forest_slam/pipeline/mapping_config.h>
 
 #include <mrpt/config/CLoadableOptions.h>
@@ -53,6 +54,9 @@ struct SensorDeclaration
 	 * "<label>_SCAN" and "<label>_GPS"). */
 	std::vector<std::string> output_labels;
 	bool replays_file = false;  ///< e.g. CVelodyneScanner pcap_input
+	/** CVelodyneScanner over UDP with `udp_receiver = forest-slam` (the
+	 * default): our receiver replaces the driver's receive loop. */
+	std::shared_ptr<VelodyneUdpSettings> velodyne_udp;
 	std::shared_ptr<mrpt::hwdrivers::CGenericSensor> sensor;
 };
 

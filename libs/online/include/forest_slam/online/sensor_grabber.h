@@ -3,12 +3,14 @@
 // doProcess() at its process_rate and hand every observation it produced,
 // with the moment it was collected, to the sink.
 #include <forest_slam/online/online_config.h>
+#include <forest_slam/online/velodyne_udp.h>
 
 #include <mrpt/obs/CObservation.h>
 
 #include <atomic>
 #include <chrono>
 #include <functional>
+#include <memory>
 #include <string>
 #include <thread>
 
@@ -29,8 +31,9 @@ class SensorGrabber
 	/** initialize() on the calling thread (errors such as a UDP port in use
 	 * throw std::runtime_error naming the section), then starts grabbing. */
 	void start();
-	/** Stops grabbing and joins the thread; the driver is kept (and with
-	 * it, what it had not completed yet, e.g. a partial revolution). */
+	/** Stops grabbing and joins the thread. Our Velodyne receiver then
+	 * hands over the revolution in progress; an MRPT driver keeps what it
+	 * had not completed. */
 	void stop();
 
 	/** A file replay (CVelodyneScanner pcap_input) reached its end. */
@@ -41,6 +44,7 @@ class SensorGrabber
    private:
 	SensorDeclaration decl_;
 	Sink sink_;
+	std::unique_ptr<VelodyneUdpReceiver> udp_;  ///< decl_.velodyne_udp
 	std::thread thread_;
 	std::atomic<bool> stop_{false}, exhausted_{false};
 	std::atomic<uint64_t> observations_{0};
