@@ -51,6 +51,11 @@ int cmdOnline(const std::vector<std::string>& args, const char* usage)
 	    (unsigned long long)s.scans_mapped, (unsigned long long)s.scans_light,
 	    (unsigned long long)r.live.scans_dropped, (unsigned long long)s.imu,
 	    (unsigned long long)s.gnss);
+	if (r.live.scans_unprocessed > 0)
+		std::printf(
+		    "scans left unprocessed by a second stop signal: %llu (in "
+		    "raw.rawlog)\n",
+		    (unsigned long long)r.live.scans_unprocessed);
 	std::printf(
 	    "latency capture -> pose: median %.0f ms, p95 %.0f ms, max %.0f ms\n",
 	    lat.median, lat.p95, lat.max);

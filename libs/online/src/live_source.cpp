@@ -121,12 +121,27 @@ void LiveSource::stopGrabbing()
 
 mrpt::obs::CObservation::Ptr LiveSource::next()
 {
+	// A stop signal ends grabbing at once, even while the queue is long.
+	if (pipeline::stopSignal() != 0) stopGrabbing();
 	for (;;)
 	{
 		maybePrintStatus();
 		bool stop_now = false;
 		{
 			std::unique_lock<std::mutex> lk(mu_);
+			if (!grabbing_ && !queue_.empty() &&
+			    pipeline::stopSignalCount() >= 2)
+			{
+				// A second Ctrl-C: the user does not want to wait for the
+				// drain. What is left is in raw.rawlog already.
+				FS_LOG_WARN("second stop signal: "
+				            << queue_.size()
+				            << " queued observations not "
+				               "processed (they are in raw.rawlog)");
+				stats_.scans_unprocessed += stats_.queue_now;
+				stats_.queue_now = 0;
+				queue_.clear();
+			}
 			if (!queue_.empty())
 			{
 				current_ = std::move(queue_.front());
@@ -238,6 +253,7 @@ std::vector<std::string> LiveSource::writeOutputs(const std::string& out_dir)
 		       << ",\n  \"scans_processed\": " << s.scans_processed
 		       << ",\n  \"scans_light\": " << s.scans_light
 		       << ",\n  \"scans_dropped\": " << s.scans_dropped
+		       << ",\n  \"scans_unprocessed\": " << s.scans_unprocessed
 		       << ",\n  \"queue_max_scans\": " << s.queue_max
 		       << ",\n  \"latency_ms\": {\"median\": " << lat.median
 		       << ", \"p95\": " << lat.p95 << ", \"max\": " << lat.max

@@ -22,15 +22,21 @@ namespace forest_slam::pipeline
 namespace
 {
 std::atomic<int> g_stop_signal{0};
+std::atomic<int> g_stop_signals{0};	 // how many arrived
 int g_signal_scopes = 0;  // nesting depth of StopSignalScope
 struct sigaction g_old_int{}, g_old_term{};
-extern "C" void onStopSignal(int sig) { g_stop_signal = sig; }
+extern "C" void onStopSignal(int sig)
+{
+	g_stop_signal = sig;
+	g_stop_signals++;
+}
 }  // namespace
 
 StopSignalScope::StopSignalScope()
 {
 	if (g_signal_scopes++ > 0) return;
 	g_stop_signal = 0;
+	g_stop_signals = 0;
 	struct sigaction sa{};
 	sa.sa_handler = onStopSignal;
 	sigemptyset(&sa.sa_mask);
@@ -46,6 +52,7 @@ StopSignalScope::~StopSignalScope()
 }
 
 int stopSignal() { return g_stop_signal.load(); }
+int stopSignalCount() { return g_stop_signals.load(); }
 
 namespace
 {

@@ -27,7 +27,9 @@ struct LiveStats
 	    0;  ///< went through the pipeline (full or light)
 	uint64_t scans_light = 0;
 	uint64_t scans_dropped =
-	    0;                   ///< from the pipeline's queue, not the recording
+	    0;  ///< from the pipeline's queue, not the recording
+	/** Left in the queue by a second stop signal (still in raw.rawlog). */
+	uint64_t scans_unprocessed = 0;
 	uint64_t queue_max = 0;  ///< most scans ever waiting
 	uint64_t queue_now = 0;
 	std::vector<double> latency_ms;  ///< capture -> pose, per processed scan

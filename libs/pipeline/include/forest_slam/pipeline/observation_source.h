@@ -71,5 +71,7 @@ class StopSignalScope
 
 /** The signal (SIGINT/SIGTERM) received inside a StopSignalScope, 0 if none. */
 int stopSignal();
+/** How many stop signals arrived (a second Ctrl-C: stop draining). */
+int stopSignalCount();
 
 }  // namespace forest_slam::pipeline
