@@ -8,6 +8,8 @@
 
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
+#include <thread>
 
 #include "process_helpers.h"
 
@@ -91,5 +93,59 @@ TEST(Follow, GrowingSimRawlogMapsLikeTheFinishedOne)
 	    << summary;
 	EXPECT_NE(summary.find("\"input_damaged\": false"), std::string::npos)
 	    << summary;
+	fs::remove_all(dir);
+}
+
+TEST(Follow, RawlogGrabberOutputWhileItIsWritten)
+{
+	// MRPT's own rawlog-grabber (mrpt-apps) recording the VLP-16 capture
+	// through CVelodyneScanner's pcap reader, as a gzip rawlog; it stops at
+	// a key press (stdin), as a user would stop it.
+	const std::string grabber = "/usr/bin/rawlog-grabber";
+	if (!fs::exists(grabber))
+		GTEST_SKIP() << "rawlog-grabber (mrpt-apps) not installed";
+	const auto dir = tempDir("grabber");
+	std::ofstream(dir + "/grab.ini")
+	    << "[global]\nrawlog_prefix = " << dir
+	    << "/dataset\ntime_between_launches = 300\nuse_sensoryframes = 0\n"
+	       "GRABBER_PERIOD_MS = 200\n\n[VLP16]\ndriver = CVelodyneScanner\n"
+	       "process_rate = 2000\nsensorLabel = VLP16\nmodel = VLP16\n"
+	       "pcap_input = "
+	    << FOREST_SLAM_SHARED_DIR
+	    << "/data/mrpt/sample_velodyne_vlp16_gps.pcap\npcap_read_once = true\n"
+	       "pcap_read_fast = false\npcap_read_full_scan_delay_ms = 300\n"
+	       "pos_packets_timing_timeout = 0\n";
+	std::ofstream(dir + "/map.ini")
+	    << "[pipeline]\nlidar_label = VLP16_SCAN\ngnss_label = VLP16_GPS\n";
+	const std::string cmd = "(sleep 4; echo q) | " + grabber + " " + dir +
+	                        "/grab.ini > " + dir + "/grab.log 2>&1";
+	const pid_t writer = ::fork();
+	if (writer == 0) ::_exit(std::system(cmd.c_str()) == 0 ? 0 : 1);
+	std::string rawlog;
+	for (int i = 0; i < 300 && rawlog.empty(); i++)
+	{
+		for (const auto& e : fs::directory_iterator(dir))
+			if (e.path().extension() == ".rawlog") rawlog = e.path().string();
+		std::this_thread::sleep_for(std::chrono::milliseconds(20));
+	}
+	ASSERT_FALSE(rawlog.empty()) << slurp(dir + "/grab.log");
+	Child follow({bin("forest-slam"), "map", "--config", dir + "/map.ini",
+	              "--rawlog", rawlog, "--out", dir + "/follow", "--follow",
+	              "--follow-timeout", "3", "--progress", "log"},
+	             dir + "/follow.log");
+	int st = 0;
+	ASSERT_EQ(::waitpid(writer, &st, 0), writer);
+	EXPECT_TRUE(WIFEXITED(st) && WEXITSTATUS(st) == 0)
+	    << slurp(dir + "/grab.log");
+	ASSERT_EQ(follow.wait(120), 0) << follow.output();
+	EXPECT_NE(follow.output().find("gzip-compressed"), std::string::npos);
+	Child offline(
+	    {bin("forest-slam"), "map", "--config", dir + "/map.ini", "--rawlog",
+	     rawlog, "--out", dir + "/offline", "--progress", "log"},
+	    dir + "/offline.log");
+	ASSERT_EQ(offline.wait(120), 0) << offline.output();
+	const auto off = slurp(dir + "/offline/trajectory.tum");
+	EXPECT_GE(std::count(off.begin(), off.end(), '\n'), 3);  // header + 2
+	EXPECT_EQ(slurp(dir + "/follow/trajectory.tum"), off);
 	fs::remove_all(dir);
 }
