@@ -69,8 +69,10 @@ TEST(Features, StemSilhouetteIsEdgeWallIsPlanar)
 	// Wall points right next to the stem silhouette are smooth, because the
 	// window ignores the other cluster.
 	for (size_t i = 0; i < pts.size(); i++)
+	{
 		if (!pts[i].ground && pts[i].cluster == 0 && f.smoothness[i] >= 0)
 			EXPECT_LT(f.smoothness[i], 0.01f);
+	}
 }
 
 TEST(Features, WithoutClustersTheStemEdgeBleedsIntoTheWall)

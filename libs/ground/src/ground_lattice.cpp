@@ -7,8 +7,8 @@
 
 namespace forest_slam::ground
 {
-void GroundOptions::loadFromConfigFile(
-	const mrpt::config::CConfigFileBase& c, const std::string& s)
+void GroundOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
+                                       const std::string& s)
 {
 	FS_LOAD(c, s, node_spacing_m);
 	FS_LOAD(c, s, radius_m);
@@ -16,25 +16,50 @@ void GroundOptions::loadFromConfigFile(
 	FS_LOAD(c, s, lowest_band_m);
 	FS_LOAD(c, s, max_slope_deg);
 	FS_LOAD(c, s, max_step_m);
+	FS_LOAD(c, s, support_radius_m);
+	FS_LOAD(c, s, seed_radius_m);
+	FS_LOAD(c, s, seed_below_sensor_m);
+	FS_LOAD(c, s, foot_radius_m);
+	FS_LOAD(c, s, foot_gap_m);
+	FS_LOAD(c, s, foot_reach_m);
 	FS_LOAD(c, s, min_points_per_node);
 	FS_LOAD(c, s, prior_variance_growth_m2);
 	FS_LOAD(c, s, measurement_variance_floor_m2);
 	const std::string where = core::configOrigin(c) + ": [" + s + "] ";
 	if (!(node_spacing_m > 0.05 && node_spacing_m < 20))
 		throw core::ConfigError(where + "node_spacing_m must be in (0.05, 20)");
-	if (!(radius_m > node_spacing_m))
-		throw core::ConfigError(where + "radius_m must exceed node_spacing_m");
+	if (!(radius_m > node_spacing_m && radius_m / node_spacing_m <= 500))
+		throw core::ConfigError(
+		    where + "radius_m must exceed node_spacing_m (at most 500 nodes)");
 	if (!(ground_threshold_m > 0) || !(lowest_band_m > 0) || !(max_step_m >= 0))
 		throw core::ConfigError(
-			where + "ground_threshold_m, lowest_band_m must be > 0, max_step_m >= 0");
+		    where +
+		    "ground_threshold_m, lowest_band_m must be > 0, max_step_m >= 0");
 	if (!(max_slope_deg > 0 && max_slope_deg < 80))
 		throw core::ConfigError(where + "max_slope_deg must be in (0, 80)");
+	if (!(support_radius_m >= node_spacing_m) ||
+	    support_radius_m / node_spacing_m > 8)
+		throw core::ConfigError(where +
+		                        "support_radius_m must be in [node_spacing_m, "
+		                        "8 node_spacing_m]");
+	if (!(seed_radius_m >= 0) || !std::isfinite(seed_below_sensor_m))
+		throw core::ConfigError(
+		    where + "seed_radius_m must be >= 0, seed_below_sensor_m finite");
+	if (!(foot_radius_m >= 0) || !(foot_gap_m > 0) ||
+	    !(foot_reach_m > foot_gap_m))
+		throw core::ConfigError(
+		    where +
+		    "foot_radius_m must be >= 0 (0: off), foot_gap_m "
+		    "> 0, foot_reach_m > foot_gap_m");
+	if (foot_radius_m > 0 && node_spacing_m / foot_radius_m > 100)
+		throw core::ConfigError(
+		    where + "foot_radius_m must be >= node_spacing_m / 100");
 	if (min_points_per_node < 1)
 		throw core::ConfigError(where + "min_points_per_node must be >= 1");
 }
 
-void GroundOptions::saveToConfigFile(
-	mrpt::config::CConfigFileBase& c, const std::string& s) const
+void GroundOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
+                                     const std::string& s) const
 {
 	c.write(s, "node_spacing_m", node_spacing_m);
 	c.write(s, "radius_m", radius_m);
@@ -42,102 +67,278 @@ void GroundOptions::saveToConfigFile(
 	c.write(s, "lowest_band_m", lowest_band_m);
 	c.write(s, "max_slope_deg", max_slope_deg);
 	c.write(s, "max_step_m", max_step_m);
+	c.write(s, "support_radius_m", support_radius_m);
+	c.write(s, "seed_radius_m", seed_radius_m);
+	c.write(s, "seed_below_sensor_m", seed_below_sensor_m);
+	c.write(s, "foot_radius_m", foot_radius_m);
+	c.write(s, "foot_gap_m", foot_gap_m);
+	c.write(s, "foot_reach_m", foot_reach_m);
 	c.write(s, "min_points_per_node", min_points_per_node);
 	c.write(s, "prior_variance_growth_m2", prior_variance_growth_m2);
 	c.write(s, "measurement_variance_floor_m2", measurement_variance_floor_m2);
 }
 
-GroundLattice::GroundLattice(const GroundOptions& opts) : opts_(opts) {}
+GroundLattice::GroundLattice(const GroundOptions& opts) : opts_(opts)
+{
+	// Window of nodes around the sensor's node, visited nearest first: the
+	// ground grows outwards from the sensor.
+	half_ =
+	    static_cast<int>(std::ceil(opts_.radius_m / opts_.node_spacing_m)) + 1;
+	for (int di = -half_; di <= half_; di++)
+		for (int dj = -half_; dj <= half_; dj++)
+			if (std::hypot(di, dj) <= half_) order_.push_back({di, dj});
+	std::stable_sort(order_.begin(), order_.end(),
+	                 [](const NodeKey& a, const NodeKey& b)
+	                 { return a.i * a.i + a.j * a.j < b.i * b.i + b.j * b.j; });
+}
 
 NodeKey GroundLattice::keyOf(double x, double y) const
 {
-	return {static_cast<int32_t>(std::lround(x / opts_.node_spacing_m)),
-			static_cast<int32_t>(std::lround(y / opts_.node_spacing_m))};
+	return {static_cast<int32_t>(std::floor(x / opts_.node_spacing_m + 0.5)),
+	        static_cast<int32_t>(std::floor(y / opts_.node_spacing_m + 0.5))};
 }
 
 namespace
 {
-struct Cell
+enum CellState : uint8_t
 {
-	std::vector<uint32_t> idx;	// points of the cell
-	float z_min = std::numeric_limits<float>::max();
-	double level = 0;  // median height of the lowest band
-	bool accepted = false;
+	kUnseen = 0,  ///< no (or too few) points this scan
+	kPending,     ///< has points, not decided yet
+	kAccepted,    ///< its level is ground
+	kRejected
+};
+
+/** Sums over a cell's ground candidates, coordinates relative to the cell
+ * centre (x, y) and to the sensor height (z), for plane fits. */
+struct Moments
+{
+	double n = 0, x = 0, y = 0, z = 0, xx = 0, xy = 0, yy = 0, xz = 0, yz = 0,
+	       zz = 0;
+	void add(double px, double py, double pz)
+	{
+		n++, x += px, y += py, z += pz;
+		xx += px * px, xy += px * py, yy += py * py;
+		xz += px * pz, yz += py * pz, zz += pz * pz;
+	}
+	/** Adds `o` whose coordinates are relative to a centre at (dx, dy) from
+	 * ours. */
+	void addShifted(const Moments& o, double dx, double dy)
+	{
+		n += o.n;
+		x += o.x + o.n * dx, y += o.y + o.n * dy, z += o.z;
+		xx += o.xx + 2 * dx * o.x + o.n * dx * dx;
+		yy += o.yy + 2 * dy * o.y + o.n * dy * dy;
+		xy += o.xy + dx * o.y + dy * o.x + o.n * dx * dy;
+		xz += o.xz + dx * o.z, yz += o.yz + dy * o.z, zz += o.zz;
+	}
 };
 }  // namespace
 
-std::vector<uint8_t> GroundLattice::labelScan(
-	const std::vector<Eigen::Vector3f>& pts, const Eigen::Vector3d& sensor)
+struct GroundLattice::Scratch
 {
+	std::vector<uint32_t> count, start, sorted;
+	std::vector<float> zmin, level, pred;
+	std::vector<uint8_t> state;
+	std::vector<Moments> mom;
+	std::vector<int32_t> cell_of;
+	std::vector<float> band;
+	std::vector<float> top;  ///< highest low return per foot cell of a node
+};
+
+GroundLattice::~GroundLattice() = default;
+GroundLattice::GroundLattice(const GroundLattice& o)
+    : opts_(o.opts_), nodes_(o.nodes_), half_(o.half_), order_(o.order_)
+{
+}
+GroundLattice& GroundLattice::operator=(const GroundLattice& o)
+{
+	opts_ = o.opts_;
+	nodes_ = o.nodes_;
+	half_ = o.half_;
+	order_ = o.order_;
+	scratch_.reset();
+	return *this;
+}
+
+std::vector<uint8_t> GroundLattice::labelScan(
+    const std::vector<Eigen::Vector3f>& pts, const Eigen::Vector3d& sensor)
+{
+	if (!scratch_) scratch_ = std::make_unique<Scratch>();
+	auto& S = *scratch_;
 	const double s = opts_.node_spacing_m;
 	const double r2 = opts_.radius_m * opts_.radius_m;
+	const int H = half_, W = 2 * H + 1;
+	const size_t ncell = static_cast<size_t>(W) * W;
+	const NodeKey c0 = keyOf(sensor.x(), sensor.y());
+	const double zs = sensor.z();
+	auto cellIndex = [&](int di, int dj) { return (di + H) * W + (dj + H); };
 	std::vector<uint8_t> labels(pts.size(), 0);
 
-	// 1. Nearest node of every point.
-	std::unordered_map<NodeKey, Cell, NodeKeyHash> cells;
-	cells.reserve(pts.size() / 8 + 16);
+	// 1. Nearest node of every point (counting sort into a dense window).
+	S.count.assign(ncell + 1, 0);
+	S.cell_of.assign(pts.size(), -1);
 	for (uint32_t i = 0; i < pts.size(); i++)
 	{
 		const auto& p = pts[i];
 		if (!p.allFinite()) continue;
 		const double dx = p.x() - sensor.x(), dy = p.y() - sensor.y();
 		if (dx * dx + dy * dy > r2) continue;
-		auto& c = cells[keyOf(p.x(), p.y())];
-		c.idx.push_back(i);
-		c.z_min = std::min(c.z_min, p.z());
+		const NodeKey k = keyOf(p.x(), p.y());
+		const int di = k.i - c0.i, dj = k.j - c0.j;
+		if (std::abs(di) > H || std::abs(dj) > H) continue;
+		S.cell_of[i] = cellIndex(di, dj);
+		S.count[S.cell_of[i] + 1]++;
 	}
+	for (size_t c = 0; c < ncell; c++) S.count[c + 1] += S.count[c];
+	S.start.assign(S.count.begin(), S.count.end());  // start[c]..start[c+1]
+	S.sorted.resize(S.count[ncell]);
+	for (uint32_t i = 0; i < pts.size(); i++)
+		if (S.cell_of[i] >= 0) S.sorted[S.count[S.cell_of[i]]++] = i;
 
 	// 2. Level of each cell: median of its lowest band (robust to a single
-	// low outlier and to grass).
-	std::vector<float> band;
-	for (auto& [key, c] : cells)
+	// low outlier and to grass); moments of its ground candidates (up to
+	// level + ground threshold) for the plane fits.
+	S.zmin.assign(ncell, 0.f);
+	S.level.assign(ncell, 0.f);
+	S.pred.assign(ncell, NAN);
+	S.state.assign(ncell, kUnseen);
+	S.mom.assign(ncell, Moments());
+	for (size_t c = 0; c < ncell; c++)
 	{
-		band.clear();
-		for (auto i : c.idx)
-			if (pts[i].z() <= c.z_min + opts_.lowest_band_m) band.push_back(pts[i].z());
-		std::nth_element(band.begin(), band.begin() + band.size() / 2, band.end());
-		c.level = band[band.size() / 2];
+		const uint32_t b = S.start[c], e = S.start[c + 1];
+		if (e - b < static_cast<uint32_t>(opts_.min_points_per_node)) continue;
+		float zmin = std::numeric_limits<float>::max();
+		for (uint32_t k = b; k < e; k++)
+			zmin = std::min(zmin, pts[S.sorted[k]].z());
+		S.band.clear();
+		for (uint32_t k = b; k < e; k++)
+			if (pts[S.sorted[k]].z() <= zmin + opts_.lowest_band_m)
+				S.band.push_back(pts[S.sorted[k]].z());
+		const size_t q = S.band.size() / 2;
+		std::nth_element(S.band.begin(), S.band.begin() + q, S.band.end());
+		S.zmin[c] = zmin;
+		S.level[c] = S.band[q];
+		S.state[c] = kPending;
+		const int di = static_cast<int>(c / W) - H,
+		          dj = static_cast<int>(c % W) - H;
+		const double xc = (c0.i + di) * s, yc = (c0.j + dj) * s;
+		const float top =
+		    S.level[c] + static_cast<float>(opts_.ground_threshold_m);
+		for (uint32_t k = b; k < e; k++)
+		{
+			const auto& p = pts[S.sorted[k]];
+			if (p.z() <= top) S.mom[c].add(p.x() - xc, p.y() - yc, p.z() - zs);
+		}
 	}
 
-	// 3. Accept a cell's level as ground only if it is consistent with its
-	// surroundings: a plane fitted to the levels of the cells around it
-	// (trimmed from above, since shrubs and stems only ever raise a level)
-	// must predict it within max_step, and it must not sit far above a
-	// confident prior. Shrub tops and stem bases fail where the true ground
-	// around them is visible or was seen before.
+	// Confident priors (nodes estimated in earlier scans), looked up lazily.
+	std::vector<float> prior_h(ncell, NAN), prior_sigma(ncell, NAN);
+	std::vector<uint8_t> prior_known(ncell, 0);
+	auto prior = [&](size_t c, float& h, float& sigma)
+	{
+		if (!prior_known[c])
+		{
+			prior_known[c] = 1;
+			const int di = static_cast<int>(c / W) - H,
+			          dj = static_cast<int>(c % W) - H;
+			const auto it = nodes_.find({c0.i + di, c0.j + dj});
+			if (it != nodes_.end() && it->second.observations > 0 &&
+			    it->second.var_h < kConfidentVariance)
+			{
+				prior_h[c] = static_cast<float>(it->second.h);
+				prior_sigma[c] =
+				    static_cast<float>(std::sqrt(it->second.var_h));
+			}
+		}
+		h = prior_h[c];
+		sigma = prior_sigma[c];
+		return std::isfinite(h);
+	};
+
+	// 3. Accept cell levels as ground, growing outwards from the sensor: a
+	// level must agree with a plane through the ground already accepted
+	// around it (this scan's accepted cells, or confident priors where this
+	// scan sees nothing), fitted trimmed from above since shrubs, stems and
+	// vehicles only ever raise a level. A cell with no such support may only
+	// start the ground near the sensor and below it. Canopy layers, roofs
+	// and shrub tops are thus cut off from the ground by their step.
 	const double tan_slope = std::tan(opts_.max_slope_deg * M_PI / 180.0);
-	const int reach = 3;
+	const int reach =
+	    static_cast<int>(std::floor(opts_.support_radius_m / s + 1e-9));
 	struct Level
 	{
 		double dx, dy, z;
 		bool used;
 	};
 	std::vector<Level> around;
-	for (auto& [key, c] : cells)
+	// Trimmed plane through `around`; returns the prediction at (0, 0).
+	auto trimmedPlane = [&](Eigen::Vector3d& sol)
 	{
-		if (static_cast<int>(c.idx.size()) < opts_.min_points_per_node) continue;
-		around.clear();
-		for (int di = -reach; di <= reach; di++)
-			for (int dj = -reach; dj <= reach; dj++)
-			{
-				if (!di && !dj) continue;
-				const auto it = cells.find({key.i + di, key.j + dj});
-				if (it == cells.end() ||
-					static_cast<int>(it->second.idx.size()) < opts_.min_points_per_node)
-					continue;
-				around.push_back({di * s, dj * s, it->second.level, true});
-			}
-		bool ok = true;
-		if (around.size() >= 4)
+		sol = Eigen::Vector3d::Zero();
+		for (int iter = 0; iter < 4; iter++)
 		{
-			Eigen::Vector3d sol(c.level, 0, 0);
-			for (int iter = 0; iter < 4; iter++)
+			// Weak ridge on the slopes: a line of support (one radial ray)
+			// does not decide the slope across it.
+			Eigen::Matrix3d A =
+			    Eigen::Vector3d(1e-6, s * s, s * s).asDiagonal();
+			Eigen::Vector3d b = Eigen::Vector3d::Zero();
+			int n = 0;
+			for (const auto& l : around)
+				if (l.used)
+				{
+					const Eigen::Vector3d row(1, l.dx, l.dy);
+					A += row * row.transpose();
+					b += row * l.z;
+					n++;
+				}
+			if (n == 0) return 0;
+			sol = A.ldlt().solve(b);
+			bool changed = false;
+			for (auto& l : around)
 			{
-				Eigen::Matrix3d A = Eigen::Matrix3d::Identity() * 1e-6;
+				const bool keep =
+				    l.z - (sol[0] + sol[1] * l.dx + sol[2] * l.dy) <=
+				    opts_.max_step_m;
+				changed |= keep != l.used;
+				l.used = keep;
+			}
+			if (!changed) return n;
+		}
+		return static_cast<int>(around.size());
+	};
+	// Seed plane: the lower envelope of the levels near the sensor (a plane
+	// refitted to the levels within max_step above it, starting low), so
+	// that roofs, shrubs and crowns near the sensor never start the ground.
+	const double seed_r2 = opts_.seed_radius_m * opts_.seed_radius_m;
+	Eigen::Vector3d seed(0, 0, 0);
+	bool seed_ok = false;
+	{
+		around.clear();
+		for (const auto& off : order_)
+		{
+			const double dx = (c0.i + off.i) * s - sensor.x(),
+			             dy = (c0.j + off.j) * s - sensor.y();
+			if (dx * dx + dy * dy > seed_r2) break;
+			const size_t c = cellIndex(off.i, off.j);
+			if (S.state[c] == kPending &&
+			    S.level[c] <= zs - opts_.seed_below_sensor_m)
+				around.push_back({dx, dy, S.level[c], true});
+		}
+		if (around.size() >= 3)
+		{
+			std::vector<double> z;
+			for (const auto& l : around) z.push_back(l.z);
+			std::nth_element(z.begin(), z.begin() + z.size() / 5, z.end());
+			seed = Eigen::Vector3d(z[z.size() / 5], 0, 0);
+			for (int iter = 0; iter < 8; iter++)
+			{
+				Eigen::Matrix3d A =
+				    Eigen::Vector3d(1e-6, 1.0, 1.0).asDiagonal();
 				Eigen::Vector3d b = Eigen::Vector3d::Zero();
 				int n = 0;
 				for (const auto& l : around)
-					if (l.used)
+					if (l.z - (seed[0] + seed[1] * l.dx + seed[2] * l.dy) <=
+					    opts_.max_step_m)
 					{
 						const Eigen::Vector3d row(1, l.dx, l.dy);
 						A += row * row.transpose();
@@ -145,116 +346,259 @@ std::vector<uint8_t> GroundLattice::labelScan(
 						n++;
 					}
 				if (n < 3) break;
-				sol = A.ldlt().solve(b);
-				// Trim levels well above the fit (shrubs, stems, walls).
-				bool changed = false;
-				for (auto& l : around)
-				{
-					const bool keep = l.z - (sol[0] + sol[1] * l.dx + sol[2] * l.dy) <= opts_.max_step_m;
-					changed |= keep != l.used;
-					l.used = keep;
-				}
-				if (!changed) break;
+				seed = A.ldlt().solve(b);
+				seed_ok = std::hypot(seed[1], seed[2]) <= tan_slope;
 			}
-			const double slope = std::hypot(sol[1], sol[2]);
-			ok = c.level - sol[0] <= opts_.max_step_m && slope <= tan_slope + 0.2;
 		}
-		const auto prior = nodes_.find(key);
-		if (ok && prior != nodes_.end() && prior->second.var_h < 0.05)
+	}
+	// Nearest-so-far accepted ground per azimuth sector (cells are visited
+	// nearest first).
+	constexpr int kSectors = 720;
+	std::vector<float> sector_z(kSectors, NAN), sector_d(kSectors, NAN);
+	for (const auto& off : order_)
+	{
+		const size_t c = cellIndex(off.i, off.j);
+		if (S.state[c] != kPending) continue;
+		const double level = S.level[c];
+		float ph, psig;
+		const bool has_prior = prior(c, ph, psig);
+		if (has_prior && level - ph > opts_.max_step_m + 3 * psig)
 		{
-			const double sigma = std::sqrt(prior->second.var_h);
-			ok = c.level - prior->second.h <= opts_.max_step_m + 3 * sigma;
+			S.state[c] = kRejected;  // well above ground seen before
+			S.pred[c] = ph;
+			continue;
 		}
-		c.accepted = ok;
+		around.clear();
+		bool seeded_only = true;
+		for (int di = -reach; di <= reach; di++)
+			for (int dj = -reach; dj <= reach; dj++)
+			{
+				const int ni = off.i + di, nj = off.j + dj;
+				if ((!di && !dj) || std::abs(ni) > H || std::abs(nj) > H)
+					continue;
+				const size_t nb = cellIndex(ni, nj);
+				if (S.state[nb] == kAccepted)
+					around.push_back({di * s, dj * s, S.level[nb], true});
+				else if (S.state[nb] == kUnseen)
+				{
+					float h, sg;
+					if (prior(nb, h, sg))
+						around.push_back({di * s, dj * s, h, true});
+				}
+			}
+		bool ok = false;
+		Eigen::Vector3d sol;
+		if (around.size() >= 3 && trimmedPlane(sol) >= 3)
+		{
+			seeded_only = false;
+			S.pred[c] = static_cast<float>(sol[0]);
+			ok = level - sol[0] <= opts_.max_step_m &&
+			     std::hypot(sol[1], sol[2]) <= tan_slope + 0.2;
+		}
+		else if (has_prior)
+		{
+			seeded_only = false;
+			S.pred[c] = ph;
+			ok = true;  // within the prior (checked above)
+		}
+		const double dx = (c0.i + off.i) * s - sensor.x(),
+		             dy = (c0.j + off.j) * s - sensor.y();
+		const double d = std::hypot(dx, dy);
+		const int bin = static_cast<int>((std::atan2(dy, dx) + M_PI) /
+		                                 (2 * M_PI) * kSectors) %
+		                kSectors;
+		if (seeded_only && d <= opts_.seed_radius_m)
+			ok = seed_ok && level <= zs - opts_.seed_below_sensor_m &&
+			     level - (seed[0] + seed[1] * dx + seed[2] * dy) <=
+			         opts_.max_step_m;
+		else if (seeded_only && level <= zs - opts_.seed_below_sensor_m)
+		{
+			// Far from the sensor the rings hit the ground metres apart, so
+			// a ring may have no accepted ground near it: bridge the gap
+			// from the nearest accepted ground in the same direction (at most
+			// the steepest slope between them), if the level also agrees with
+			// the levels around it. Only below the sensor: canopy seen by
+			// the upward beams never bridges.
+			int from = -1;
+			for (int k = bin - 1; k <= bin + 1; k++)
+			{
+				const int b = (k + kSectors) % kSectors;
+				if (std::isfinite(sector_d[b]) &&
+				    (from < 0 || sector_d[b] > sector_d[from]))
+					from = b;
+			}
+			if (from >= 0 &&
+			    level - sector_z[from] <=
+			        opts_.max_step_m + tan_slope * (d - sector_d[from]))
+			{
+				for (int di = -reach; di <= reach; di++)
+					for (int dj = -reach; dj <= reach; dj++)
+					{
+						const int ni = off.i + di, nj = off.j + dj;
+						if ((!di && !dj) || std::abs(ni) > H ||
+						    std::abs(nj) > H)
+							continue;
+						const size_t nb = cellIndex(ni, nj);
+						if (S.state[nb] != kUnseen && S.state[nb] != kAccepted)
+							around.push_back(
+							    {di * s, dj * s, S.level[nb], true});
+					}
+				ok = true;
+				if (around.size() >= 4 && trimmedPlane(sol) >= 3)
+					ok = level - sol[0] <= opts_.max_step_m;
+			}
+		}
+		S.state[c] = ok ? kAccepted : kRejected;
+		if (ok)
+		{
+			sector_z[bin] = static_cast<float>(level);
+			sector_d[bin] = static_cast<float>(d);
+		}
 	}
 
-	// 4. Local plane per accepted node from the lowest-band points of the
+	// 4. Local plane per accepted node from the ground candidates of the
 	// accepted cells around it, fused with the node's prior (Kalman-style).
-	for (auto& [key, c] : cells)
+	for (const auto& off : order_)
 	{
-		auto& node = nodes_[key];
+		const size_t c = cellIndex(off.i, off.j);
+		if (S.state[c] == kUnseen) continue;
+		auto& node = nodes_[{c0.i + off.i, c0.j + off.j}];
 		node.var_h += opts_.prior_variance_growth_m2;
-		if (!c.accepted) continue;
-		const double xc = key.i * s, yc = key.j * s;
-		Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
-		Eigen::Vector3d b = Eigen::Vector3d::Zero();
-		int n = 0;
+		if (S.state[c] != kAccepted) continue;
+		Moments m = S.mom[c];
 		for (int di = -1; di <= 1; di++)
 			for (int dj = -1; dj <= 1; dj++)
 			{
-				const auto it = cells.find({key.i + di, key.j + dj});
-				if (it == cells.end() || !it->second.accepted) continue;
-				for (auto i : it->second.idx)
-				{
-					const auto& p = pts[i];
-					if (p.z() > it->second.level + opts_.lowest_band_m) continue;
-					const Eigen::Vector3d row(1, p.x() - xc, p.y() - yc);
-					A += row * row.transpose();
-					b += row * p.z();
-					n++;
-				}
+				const int ni = off.i + di, nj = off.j + dj;
+				if ((!di && !dj) || std::abs(ni) > H || std::abs(nj) > H)
+					continue;
+				const size_t nb = cellIndex(ni, nj);
+				if (S.state[nb] == kAccepted)
+					m.addShifted(S.mom[nb], di * s, dj * s);
 			}
-		if (n < opts_.min_points_per_node) continue;
+		if (m.n < opts_.min_points_per_node) continue;
+		Eigen::Matrix3d A;
+		A << m.n, m.x, m.y, m.x, m.xx, m.xy, m.y, m.xy, m.yy;
+		const Eigen::Vector3d b(m.z, m.xz, m.yz);
 		Eigen::Vector3d sol;
-		bool plane = A.determinant() > 1e-6 * n * n;
+		bool plane = A.determinant() > 1e-6 * m.n * m.n;
 		if (plane)
 		{
 			sol = A.ldlt().solve(b);
-			const double slope = std::hypot(sol[1], sol[2]);
-			if (!sol.allFinite() || slope > tan_slope) plane = false;
+			if (!sol.allFinite() || std::hypot(sol[1], sol[2]) > tan_slope)
+				plane = false;
 		}
-		if (!plane) sol = Eigen::Vector3d(c.level, node.sx, node.sy);
-		// Residual spread of the measurement.
-		double ss = 0;
-		for (auto i : c.idx)
-		{
-			const auto& p = pts[i];
-			if (p.z() > c.level + opts_.lowest_band_m) continue;
-			const double e = p.z() - (sol[0] + sol[1] * (p.x() - xc) + sol[2] * (p.y() - yc));
-			ss += e * e;
-		}
-		const double var_m =
-			std::max(opts_.measurement_variance_floor_m2, ss / std::max(1, n));
+		if (!plane) sol = Eigen::Vector3d(S.level[c] - zs, node.sx, node.sy);
+		// Residual spread of the cell's own candidates about the plane.
+		const Moments& o = S.mom[c];
+		const double a0 = sol[0], a1 = sol[1], a2 = sol[2];
+		const double ss = o.zz - 2 * (a0 * o.z + a1 * o.xz + a2 * o.yz) +
+		                  a0 * a0 * o.n + a1 * a1 * o.xx + a2 * a2 * o.yy +
+		                  2 * (a0 * a1 * o.x + a0 * a2 * o.y + a1 * a2 * o.xy);
+		const double var_m = std::max(opts_.measurement_variance_floor_m2,
+		                              std::max(0.0, ss) / std::max(1.0, o.n));
+		const double h = sol[0] + zs;
 		const double w = node.var_h / (node.var_h + var_m);
-		node.h += w * (sol[0] - node.h);
+		node.h += w * (h - node.h);
 		node.sx += w * (sol[1] - node.sx);
 		node.sy += w * (sol[2] - node.sy);
 		node.var_h = node.var_h * var_m / (node.var_h + var_m);
 		node.observations++;
 	}
 
-	// 5. Labels: height above the node's plane.
-	for (auto& [key, c] : cells)
+	// 5. Labels: height above the node's plane; where the node was never
+	// measured, above the level its accepted neighbours predict. A low point
+	// with another return straight above it (foot_gap_m..foot_reach_m
+	// higher, within foot_radius_m horizontally) is the foot of a stem, wall
+	// or shrub, not ground: seen from the side, the rings above hit the same
+	// vertical surface at the same place, while above ground there is air.
+	const double fc = opts_.foot_radius_m;
+	const int L = fc > 0 ? static_cast<int>(std::ceil(s / fc)) + 2 : 0;
+	for (const auto& off : order_)
 	{
-		const auto it = nodes_.find(key);
-		if (it == nodes_.end() || it->second.observations == 0) continue;
-		const auto& node = it->second;
+		const size_t c = cellIndex(off.i, off.j);
+		const uint32_t b = S.start[c], e = S.start[c + 1];
+		if (b == e) continue;
+		const NodeKey key{c0.i + off.i, c0.j + off.j};
 		const double xc = key.i * s, yc = key.j * s;
-		for (auto i : c.idx)
+		const auto it = nodes_.find(key);
+		const LatticeNode* node =
+		    it != nodes_.end() && it->second.observations > 0 ? &it->second
+		                                                      : nullptr;
+		if (!node && !std::isfinite(S.pred[c])) continue;
+		// Highest low return per foot cell of this node (built on demand;
+		// a foot and the surface above it are in the same node but at
+		// its border).
+		bool have_top = false;
+		const double gx0 = xc - 0.5 * s - fc, gy0 = yc - 0.5 * s - fc;
+		auto footCell = [&](const Eigen::Vector3f& p, int& u, int& v)
 		{
-			const auto& p = pts[i];
-			const double dz = p.z() - (node.h + node.sx * (p.x() - xc) + node.sy * (p.y() - yc));
-			labels[i] = dz < opts_.ground_threshold_m ? 1 : 0;
+			const double fu = (p.x() - gx0) / fc, fv = (p.y() - gy0) / fc;
+			u = std::clamp(static_cast<int>(fu), 0, L - 1);
+			v = std::clamp(static_cast<int>(fv), 0, L - 1);
+			return std::make_pair(fu - u < 0.5 ? -1 : 1, fv - v < 0.5 ? -1 : 1);
+		};
+		for (uint32_t k = b; k < e; k++)
+		{
+			const auto& p = pts[S.sorted[k]];
+			const double ground_z = node ? node->h + node->sx * (p.x() - xc) +
+			                                   node->sy * (p.y() - yc)
+			                             : S.pred[c];
+			const double dz = p.z() - ground_z;
+			uint8_t lab = dz < opts_.ground_threshold_m;
+			// Below the plane a point is ground even under foliage (ground
+			// seen through a shrub); above it, a foot is not.
+			if (lab && dz >= 0 && L > 0)
+			{
+				if (!have_top)
+				{
+					have_top = true;
+					S.top.assign(static_cast<size_t>(L) * L, -INFINITY);
+					const float cap =
+					    static_cast<float>(ground_z + opts_.foot_reach_m);
+					for (uint32_t q = b; q < e; q++)
+					{
+						const auto& r = pts[S.sorted[q]];
+						if (r.z() > cap) continue;
+						int u, v;
+						footCell(r, u, v);
+						float& t = S.top[static_cast<size_t>(u) * L + v];
+						t = std::max(t, r.z());
+					}
+				}
+				int u, v;
+				const auto [su, sv] = footCell(p, u, v);
+				const float above =
+				    p.z() + static_cast<float>(opts_.foot_gap_m);
+				for (int uu : {u, u + su})
+					for (int vv : {v, v + sv})
+						if (uu >= 0 && vv >= 0 && uu < L && vv < L &&
+						    S.top[static_cast<size_t>(uu) * L + vv] > above)
+							lab = 0;
+			}
+			labels[S.sorted[k]] = lab;
 		}
 	}
 	return labels;
 }
-
 bool GroundLattice::heightAt(double x, double y, double& z) const
 {
 	const double s = opts_.node_spacing_m;
 	const double fx = x / s, fy = y / s;
-	const int i0 = static_cast<int>(std::floor(fx)), j0 = static_cast<int>(std::floor(fy));
+	const int i0 = static_cast<int>(std::floor(fx)),
+	          j0 = static_cast<int>(std::floor(fy));
 	double wsum = 0, zsum = 0;
 	for (int di = 0; di <= 1; di++)
 		for (int dj = 0; dj <= 1; dj++)
 		{
 			const auto it = nodes_.find({i0 + di, j0 + dj});
 			if (it == nodes_.end() || it->second.observations == 0) continue;
-			const double w = (di ? fx - i0 : 1 - (fx - i0)) * (dj ? fy - j0 : 1 - (fy - j0));
+			const double w =
+			    (di ? fx - i0 : 1 - (fx - i0)) * (dj ? fy - j0 : 1 - (fy - j0));
 			const auto& n = it->second;
 			// Each node predicts with its own plane; blend bilinearly.
-			const double zn = n.h + n.sx * (x - (i0 + di) * s) + n.sy * (y - (j0 + dj) * s);
+			const double zn =
+			    n.h + n.sx * (x - (i0 + di) * s) + n.sy * (y - (j0 + dj) * s);
 			zsum += (w + 1e-9) * zn;
 			wsum += w + 1e-9;
 		}

@@ -18,8 +18,8 @@ namespace forest_slam::features
 struct FeatureOptions : public mrpt::config::CLoadableOptions
 {
 	int half_window = 5;  ///< neighbours each side (same ring, same cluster)
-	double edge_threshold = 0.1;  ///< smoothness above: edge candidate
-	double planar_threshold = 0.02;	 ///< below: planar candidate
+	double edge_threshold = 0.1;     ///< smoothness above: edge candidate
+	double planar_threshold = 0.02;  ///< below: planar candidate
 	int sectors_per_ring = 6;
 	int max_edges_per_sector = 4;
 	int max_planar_per_sector = 8;
@@ -28,13 +28,17 @@ struct FeatureOptions : public mrpt::config::CLoadableOptions
 	 * against the background): an edge, whatever its in-cluster smoothness.
 	 * The background point beside it is not (it is the occluded side). */
 	double silhouette_gap_m = 0.3;
+	/** Edges only in clusters this linear: (s1 - s2) / s1 over the standard
+	 * deviations along the cluster's two main axes (stems and branches are
+	 * lines, shrubs and foliage blobs, walls planes); 0 = any cluster. */
+	double edge_min_linearity = 0.6;
 	/** Ground points kept as planar features: every N-th per ring. */
 	int ground_decimation = 4;
 
 	void loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
-							const std::string& section) override;
+	                        const std::string& section) override;
 	void saveToConfigFile(mrpt::config::CConfigFileBase& c,
-						  const std::string& section) const override;
+	                      const std::string& section) const override;
 };
 
 /** One point of the scan as the extractor needs it. */
@@ -49,14 +53,14 @@ struct FeatureInputPoint
 
 struct Features
 {
-	std::vector<uint32_t> edges;   ///< indices into the input
-	std::vector<uint32_t> planar;  ///< indices into the input
-	std::vector<float> smoothness;	///< per input point, -1 if not computed
+	std::vector<uint32_t> edges;    ///< indices into the input
+	std::vector<uint32_t> planar;   ///< indices into the input
+	std::vector<float> smoothness;  ///< per input point, -1 if not computed
 };
 
 /** LOAM smoothness |sum_j (X_j - X_i)| / (|S| |X_i|) over the same-ring,
  * same-cluster window. */
 Features extractFeatures(const std::vector<FeatureInputPoint>& pts,
-						 const FeatureOptions& opts = FeatureOptions());
+                         const FeatureOptions& opts = FeatureOptions());
 
 }  // namespace forest_slam::features

@@ -11,6 +11,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <memory>
 #include <unordered_map>
 #include <vector>
 
@@ -19,7 +20,7 @@ namespace forest_slam::ground
 struct GroundOptions : public mrpt::config::CLoadableOptions
 {
 	double node_spacing_m = 1.0;  ///< lattice resolution
-	double radius_m = 40.0;	 ///< points farther from the sensor are not used
+	double radius_m = 40.0;  ///< points farther from the sensor are not used
 	/** A point is ground if within this distance of its node's plane. */
 	double ground_threshold_m = 0.15;
 	/** Candidate ground points of a node: within this band above its
@@ -30,6 +31,21 @@ struct GroundOptions : public mrpt::config::CLoadableOptions
 	 * nodes around it predicts by at most this much: rejects shrub tops and
 	 * stem bases taken for ground where the true ground is hidden. */
 	double max_step_m = 0.2;
+	/** Accepted ground within this distance of a node supports it (the
+	 * plane its level must agree with) [m]. */
+	double support_radius_m = 3.0;
+	/** A node with no supporting ground around it may start the ground only
+	 * within this distance of the sensor [m] ... */
+	double seed_radius_m = 12.0;
+	/** ... and at least this far below the sensor [m]. */
+	double seed_below_sensor_m = 0.3;
+	/** A point below the ground threshold is still not ground if another
+	 * return lies foot_gap_m..foot_reach_m above it within about
+	 * foot_radius_m horizontally: it is the foot of a stem, wall or shrub
+	 * (0 turns the check off) [m]. */
+	double foot_radius_m = 0.1;
+	double foot_gap_m = 0.25;
+	double foot_reach_m = 1.5;
 	int min_points_per_node = 3;
 	/** Per-scan growth of a node's prior variance [m^2] (terrain does not
 	 * change, but drift and mislabels must be forgettable). */
@@ -37,16 +53,16 @@ struct GroundOptions : public mrpt::config::CLoadableOptions
 	double measurement_variance_floor_m2 = 0.0004;
 
 	void loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
-							const std::string& section) override;
+	                        const std::string& section) override;
 	void saveToConfigFile(mrpt::config::CConfigFileBase& c,
-						  const std::string& section) const override;
+	                      const std::string& section) const override;
 };
 
 struct LatticeNode
 {
 	double h = 0, sx = 0, sy = 0;  ///< elevation [m] and slopes dz/dx, dz/dy
-	double var_h = 1e6;	 ///< variance of h [m^2]; large = unknown
-	uint32_t observations = 0;	///< scans that measured it
+	double var_h = 1e6;            ///< variance of h [m^2]; large = unknown
+	uint32_t observations = 0;     ///< scans that measured it
 };
 
 struct NodeKey
@@ -59,7 +75,7 @@ struct NodeKeyHash
 	size_t operator()(const NodeKey& k) const
 	{
 		return (static_cast<size_t>(static_cast<uint32_t>(k.i)) << 32) ^
-			   static_cast<uint32_t>(k.j);
+		       static_cast<uint32_t>(k.j);
 	}
 };
 
@@ -67,12 +83,19 @@ class GroundLattice
 {
    public:
 	explicit GroundLattice(const GroundOptions& opts = GroundOptions());
+	~GroundLattice();
+	GroundLattice(const GroundLattice& o);
+	GroundLattice& operator=(const GroundLattice& o);
+
+	/** A node whose elevation variance is below this [m^2] is a confident
+	 * prior: it supports its neighbours and vetoes levels far above it. */
+	static constexpr double kConfidentVariance = 0.05;
 
 	/** Labels the points (gravity-aligned frame, e.g. the map frame) of one
 	 * scan seen from `sensor_xyz`: returns 1 for ground, 0 otherwise, and
 	 * updates the lattice. NaN points are labelled 0. */
 	std::vector<uint8_t> labelScan(const std::vector<Eigen::Vector3f>& pts,
-								   const Eigen::Vector3d& sensor_xyz);
+	                               const Eigen::Vector3d& sensor_xyz);
 
 	/** Terrain elevation at (x, y) by bilinear interpolation of the known
 	 * nodes around it; false if none is known. */
@@ -89,6 +112,10 @@ class GroundLattice
    private:
 	GroundOptions opts_;
 	std::unordered_map<NodeKey, LatticeNode, NodeKeyHash> nodes_;
+	int half_ = 0;  ///< window half width [nodes] around the sensor's node
+	std::vector<NodeKey> order_;  ///< window offsets, nearest first
+	struct Scratch;               ///< per-scan buffers, reused
+	std::unique_ptr<Scratch> scratch_;
 };
 
 }  // namespace forest_slam::ground
