@@ -71,7 +71,9 @@ TEST(Features, StemSilhouetteIsEdgeWallIsPlanar)
 	for (size_t i = 0; i < pts.size(); i++)
 	{
 		if (!pts[i].ground && pts[i].cluster == 0 && f.smoothness[i] >= 0)
+		{
 			EXPECT_LT(f.smoothness[i], 0.01f);
+		}
 	}
 }
 
