@@ -69,12 +69,14 @@ void LiveSource::start()
 void LiveSource::onObservation(const mrpt::obs::CObservation::Ptr& obs,
                                SteadyClock::time_point t)
 {
-	recorder_->record(obs);  // first, and unconditionally
 	const bool scan = obs->sensorLabel == cfg_.mapping.pipeline.lidar_label;
 	const auto* vel =
 	    dynamic_cast<const mrpt::obs::CObservationVelodyneScan*>(obs.get());
 	{
 		std::lock_guard<std::mutex> lk(mu_);
+		// Recorded first and unconditionally, under the queue's lock so that
+		// raw.rawlog has the pipeline's order (an offline re-run matches).
+		recorder_->record(obs);
 		stats_.observations_captured++;
 		if (vel) stats_.velodyne_packets += vel->scan_packets.size();
 		last_arrival_ = t;
