@@ -1,15 +1,13 @@
 #include <forest_slam/core/config.h>
 #include <forest_slam/odometry/feature_registration.h>
 
-#include <ceres/ceres.h>
-
 #include <Eigen/Eigenvalues>
 #include <cmath>
 
 namespace forest_slam::odometry
 {
 void RegistrationOptions::loadFromConfigFile(
-	const mrpt::config::CConfigFileBase& c, const std::string& s)
+    const mrpt::config::CConfigFileBase& c, const std::string& s)
 {
 	FS_LOAD(c, s, outer_iterations);
 	FS_LOAD(c, s, lm_iterations);
@@ -23,6 +21,7 @@ void RegistrationOptions::loadFromConfigFile(
 	FS_LOAD(c, s, line_ratio);
 	FS_LOAD(c, s, prior_translation_sigma_m);
 	FS_LOAD(c, s, prior_rotation_sigma_deg);
+	FS_LOAD(c, s, gravity_sigma_deg);
 	FS_LOAD(c, s, converged_translation_m);
 	FS_LOAD(c, s, converged_rotation_rad);
 	const std::string where = core::configOrigin(c) + ": [" + s + "] ";
@@ -30,14 +29,15 @@ void RegistrationOptions::loadFromConfigFile(
 		throw core::ConfigError(where + "iteration counts must be >= 1");
 	if (knn < 3 || edge_knn < 2)
 		throw core::ConfigError(where + "knn must be >= 3 and edge_knn >= 2");
-	if (!(min_correspondence_m > 0) || !(max_correspondence_m >= min_correspondence_m) ||
-		!(huber_m > 0))
-		throw core::ConfigError(
-			where + "need 0 < min_correspondence_m <= max_correspondence_m and huber_m > 0");
+	if (!(min_correspondence_m > 0) ||
+	    !(max_correspondence_m >= min_correspondence_m) || !(huber_m > 0))
+		throw core::ConfigError(where +
+		                        "need 0 < min_correspondence_m <= "
+		                        "max_correspondence_m and huber_m > 0");
 }
 
-void RegistrationOptions::saveToConfigFile(
-	mrpt::config::CConfigFileBase& c, const std::string& s) const
+void RegistrationOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
+                                           const std::string& s) const
 {
 	c.write(s, "outer_iterations", outer_iterations);
 	c.write(s, "lm_iterations", lm_iterations);
@@ -51,76 +51,34 @@ void RegistrationOptions::saveToConfigFile(
 	c.write(s, "line_ratio", line_ratio);
 	c.write(s, "prior_translation_sigma_m", prior_translation_sigma_m);
 	c.write(s, "prior_rotation_sigma_deg", prior_rotation_sigma_deg);
+	c.write(s, "gravity_sigma_deg", gravity_sigma_deg);
 	c.write(s, "converged_translation_m", converged_translation_m);
 	c.write(s, "converged_rotation_rad", converged_rotation_rad);
 }
 
+void lineToPlanes(const Eigen::Vector3d& a, const Eigen::Vector3d& dir,
+                  PlaneRow& p, PlaneRow& q)
+{
+	const Eigen::Vector3d u = dir.unitOrthogonal();
+	const Eigen::Vector3d v = dir.cross(u).normalized();
+	p = {u, -u.dot(a)};
+	q = {v, -v.dot(a)};
+}
+
 namespace
 {
-struct PointToPlane
-{
-	Eigen::Vector3d p, n;
-	double d;  // plane: n.x + d = 0
-	template <typename T>
-	bool operator()(const T* q, const T* t, T* r) const
-	{
-		const Eigen::Map<const Eigen::Quaternion<T>> Q(q);
-		const Eigen::Map<const Eigen::Matrix<T, 3, 1>> tr(t);
-		const Eigen::Matrix<T, 3, 1> x = Q * p.cast<T>() + tr;
-		r[0] = n.cast<T>().dot(x) + T(d);
-		return true;
-	}
-};
-
-struct PointToLine
-{
-	Eigen::Vector3d p, a, dir;	// line through a along unit dir
-	template <typename T>
-	bool operator()(const T* q, const T* t, T* r) const
-	{
-		const Eigen::Map<const Eigen::Quaternion<T>> Q(q);
-		const Eigen::Map<const Eigen::Matrix<T, 3, 1>> tr(t);
-		const Eigen::Matrix<T, 3, 1> x = Q * p.cast<T>() + tr;
-		const Eigen::Matrix<T, 3, 1> e = (x - a.cast<T>()).cross(dir.cast<T>());
-		r[0] = e[0];
-		r[1] = e[1];
-		r[2] = e[2];
-		return true;
-	}
-};
-
-/** Pose prior: (t - t0)/sigma_t and 2 vec(q0^-1 q)/sigma_r. */
-struct PosePrior
-{
-	Eigen::Quaterniond q0;
-	Eigen::Vector3d t0;
-	double inv_sigma_t, inv_sigma_r;
-	template <typename T>
-	bool operator()(const T* q, const T* t, T* r) const
-	{
-		const Eigen::Map<const Eigen::Quaternion<T>> Q(q);
-		const Eigen::Quaternion<T> d = q0.conjugate().cast<T>() * Q;
-		const T sign = d.w() < T(0) ? T(-1) : T(1);
-		for (int i = 0; i < 3; i++)
-		{
-			r[i] = (t[i] - T(t0[i])) * T(inv_sigma_t);
-			r[3 + i] = T(2) * sign * d.vec()[i] * T(inv_sigma_r);
-		}
-		return true;
-	}
-};
-
 struct LocalFit
 {
 	Eigen::Vector3d mean;
-	Eigen::Vector3d evals;	// ascending
+	Eigen::Vector3d evals;  // ascending
 	Eigen::Matrix3d evecs;
 };
 
 bool fitNeighbourhood(const KdTree& tree, const Eigen::Vector3f& q, int k,
-					  double gate, double extent, std::vector<uint32_t>& idx,
-					  std::vector<float>& d2, LocalFit& fit)
+                      double gate, double extent, LocalFit& fit)
 {
+	thread_local std::vector<uint32_t> idx;
+	thread_local std::vector<float> d2;
 	if (tree.knn(q, k, idx, d2) < static_cast<size_t>(k)) return false;
 	if (d2.front() > gate * gate || d2.back() > extent * extent) return false;
 	fit.mean.setZero();
@@ -132,116 +90,243 @@ bool fitNeighbourhood(const KdTree& tree, const Eigen::Vector3f& q, int k,
 		const Eigen::Vector3d d = tree.points()[i].cast<double>() - fit.mean;
 		C += d * d.transpose();
 	}
-	Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(C / idx.size());
+	Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
+	es.computeDirect(C / idx.size());
 	fit.evals = es.eigenvalues();
 	fit.evecs = es.eigenvectors();
 	return true;
 }
 }  // namespace
 
-RegistrationResult registerFeatures(
-	const FeatureTarget& target, const std::vector<Eigen::Vector3f>& src_edges,
-	const std::vector<Eigen::Vector3f>& src_planar,
-	const Eigen::Isometry3d& initial, const RegistrationOptions& o,
-	const Eigen::Isometry3d* prior)
+bool FeatureTarget::matchPlane(const Eigen::Vector3f& x, double gate,
+                               const RegistrationOptions& o,
+                               PlaneRow& out) const
 {
+	LocalFit fit;
+	if (!fitNeighbourhood(planar, x, o.knn, gate, o.max_neighbourhood_m, fit))
+		return false;
+	if (fit.evals[0] > o.plane_flatness * fit.evals[1]) return false;
+	out.n = fit.evecs.col(0);
+	out.d = -out.n.dot(fit.mean);
+	return true;
+}
+
+bool FeatureTarget::matchLine(const Eigen::Vector3f& x, double gate,
+                              const RegistrationOptions& o, PlaneRow& a,
+                              PlaneRow& b) const
+{
+	LocalFit fit;
+	if (!fitNeighbourhood(edges, x, o.edge_knn, gate, o.max_neighbourhood_m,
+	                      fit))
+		return false;
+	if (fit.evals[2] < o.line_ratio * fit.evals[1]) return false;
+	lineToPlanes(fit.mean, fit.evecs.col(2), a, b);
+	return true;
+}
+
+namespace
+{
+/** A residual row: source point (sensor frame) and its plane (map frame). */
+struct Row
+{
+	Eigen::Vector3d p;
+	PlaneRow plane;
+};
+
+using Mat6 = Eigen::Matrix<double, 6, 6>;
+using Vec6 = Eigen::Matrix<double, 6, 1>;
+
+Eigen::Matrix3d expSO3(const Eigen::Vector3d& w)
+{
+	const double a = w.norm();
+	if (a < 1e-12) return Eigen::Matrix3d::Identity();
+	return Eigen::AngleAxisd(a, w / a).toRotationMatrix();
+}
+
+Eigen::Vector3d logSO3(const Eigen::Matrix3d& R)
+{
+	const Eigen::AngleAxisd aa(R);
+	return aa.axis() * aa.angle();
+}
+
+/** The state is (R, t); an update δ = (δθ, δt) rotates about the sensor's
+ * own position: x' = exp(δθ)(x - t) + t + δt, R' = exp(δθ) R, t' = t + δt.
+ * Rotating about the sensor (not the map origin) keeps rotation and
+ * translation decoupled far from the origin. */
+struct Problem
+{
+	const std::vector<Row>& rows;
+	const RegistrationOptions& o;
+	const RegistrationPriors& priors;
+
+	/** Cost (Huber) at (R, t); with H/g, the weighted normal equations. */
+	double evaluate(const Eigen::Matrix3d& R, const Eigen::Vector3d& t, Mat6* H,
+	                Vec6* g, Mat6* info = nullptr, double* sq = nullptr) const
+	{
+		double cost = 0;
+		const double h = o.huber_m;
+		if (H) H->setZero(), g->setZero();
+		for (const auto& r : rows)
+		{
+			const Eigen::Vector3d x = R * r.p + t;
+			const double e = r.plane.n.dot(x) + r.plane.d;
+			const double ae = std::abs(e);
+			cost += ae <= h ? 0.5 * e * e : h * (ae - 0.5 * h);
+			if (sq) *sq += e * e;
+			if (!H) continue;
+			const double w = ae <= h ? 1.0 : h / ae;
+			Vec6 J;
+			J << (x - t).cross(r.plane.n), r.plane.n;
+			H->noalias() += w * J * J.transpose();
+			*g += w * e * J;
+			if (info) info->noalias() += J * J.transpose();
+		}
+		if (priors.motion && o.prior_translation_sigma_m > 0 &&
+		    o.prior_rotation_sigma_deg > 0)
+		{
+			const double it = 1.0 / o.prior_translation_sigma_m;
+			const double ir = 1.0 / (o.prior_rotation_sigma_deg * M_PI / 180);
+			const Eigen::Vector3d et = (t - priors.motion->translation()) * it;
+			const Eigen::Vector3d er =
+			    logSO3(R * priors.motion->linear().transpose()) * ir;
+			cost += 0.5 * (et.squaredNorm() + er.squaredNorm());
+			if (H)
+			{
+				H->topLeftCorner<3, 3>() +=
+				    ir * ir * Eigen::Matrix3d::Identity();
+				H->bottomRightCorner<3, 3>() +=
+				    it * it * Eigen::Matrix3d::Identity();
+				g->head<3>() += ir * er;
+				g->tail<3>() += it * et;
+			}
+		}
+		if (priors.up_in_source && o.gravity_sigma_deg > 0)
+		{
+			const double ig = 1.0 / (o.gravity_sigma_deg * M_PI / 180);
+			const Eigen::Vector3d v = R * *priors.up_in_source;
+			// Residual: the horizontal part of "up" seen in the map frame.
+			const Eigen::Vector2d e = v.head<2>() * ig;
+			cost += 0.5 * e.squaredNorm();
+			if (H)
+			{
+				// d(exp(δθ) v)/dδθ = -[v]x; rows x and y.
+				Eigen::Matrix<double, 2, 6> J =
+				    Eigen::Matrix<double, 2, 6>::Zero();
+				J(0, 1) = v.z();
+				J(0, 2) = -v.y();
+				J(1, 0) = -v.z();
+				J(1, 2) = v.x();
+				J *= ig;
+				H->noalias() += J.transpose() * J;
+				g->noalias() += J.transpose() * e;
+			}
+		}
+		return cost;
+	}
+};
+}  // namespace
+
+RegistrationResult registerFeatures(
+    const RegistrationTarget& target,
+    const std::vector<Eigen::Vector3f>& src_edges,
+    const std::vector<Eigen::Vector3f>& src_planar,
+    const Eigen::Isometry3d& initial, const RegistrationOptions& o,
+    const RegistrationPriors& priors)
+{
+	// A six-parameter problem with a few thousand rows per scan: the normal
+	// equations are formed directly (analytic Jacobians), which is an order
+	// of magnitude cheaper than building a Ceres problem per correspondence
+	// search on every scan; Ceres stays for the pose graph.
 	RegistrationResult res;
-	Eigen::Quaterniond q(initial.linear());
-	q.normalize();
+	Eigen::Matrix3d R =
+	    Eigen::Quaterniond(initial.linear()).normalized().toRotationMatrix();
 	Eigen::Vector3d t = initial.translation();
-	std::vector<uint32_t> idx;
-	std::vector<float> d2;
+	std::vector<Row> rows;
+	rows.reserve(src_planar.size() + 2 * src_edges.size());
+	double lambda = 1e-4;
 
 	const int shrink_steps = std::max(1, o.outer_iterations / 2);
 	for (int it = 0; it < o.outer_iterations; it++)
 	{
 		res.iterations = it + 1;
 		const double a = std::min(1.0, static_cast<double>(it) / shrink_steps);
-		const double gate = o.max_correspondence_m *
-							std::pow(o.min_correspondence_m / o.max_correspondence_m, a);
-		const Eigen::Isometry3f T = (Eigen::Translation3d(t) * q).cast<float>();
-		ceres::Problem::Options po;
-		po.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-		po.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-		ceres::Problem problem(po);
-		ceres::HuberLoss loss(o.huber_m);
-		ceres::EigenQuaternionManifold quat_manifold;
-		double qa[4] = {q.x(), q.y(), q.z(), q.w()};
-		double ta[3] = {t.x(), t.y(), t.z()};
-		problem.AddParameterBlock(qa, 4, &quat_manifold);
-		problem.AddParameterBlock(ta, 3);
-		Eigen::Matrix<double, 6, 6> H = Eigen::Matrix<double, 6, 6>::Zero();
+		const double gate =
+		    o.max_correspondence_m *
+		    std::pow(o.min_correspondence_m / o.max_correspondence_m, a);
+		const Eigen::Isometry3f T =
+		    (Eigen::Translation3d(t) * Eigen::Quaterniond(R)).cast<float>();
+		rows.clear();
 		size_t ne = 0, np = 0;
-		LocalFit fit;
+		PlaneRow pa, pb;
 		for (const auto& p : src_planar)
-		{
-			const Eigen::Vector3f x = T * p;
-			if (!fitNeighbourhood(target.planar, x, o.knn, gate, o.max_neighbourhood_m, idx, d2, fit))
-				continue;
-			if (fit.evals[0] > o.plane_flatness * fit.evals[1]) continue;
-			const Eigen::Vector3d n = fit.evecs.col(0);
-			problem.AddResidualBlock(
-				new ceres::AutoDiffCostFunction<PointToPlane, 1, 4, 3>(
-					new PointToPlane{p.cast<double>(), n, -n.dot(fit.mean)}),
-				&loss, qa, ta);
-			Eigen::Matrix<double, 6, 1> J;
-			J << x.cast<double>().cross(n), n;
-			H += J * J.transpose();
-			np++;
-		}
-		for (const auto& p : src_edges)
-		{
-			const Eigen::Vector3f x = T * p;
-			if (!fitNeighbourhood(target.edges, x, o.edge_knn, gate, o.max_neighbourhood_m, idx, d2, fit))
-				continue;
-			if (fit.evals[2] < o.line_ratio * fit.evals[1]) continue;
-			const Eigen::Vector3d dir = fit.evecs.col(2);
-			problem.AddResidualBlock(
-				new ceres::AutoDiffCostFunction<PointToLine, 3, 4, 3>(
-					new PointToLine{p.cast<double>(), fit.mean, dir}),
-				&loss, qa, ta);
-			// Information of the two directions normal to the line.
-			for (int c = 0; c < 2; c++)
+			if (target.matchPlane(T * p, gate, o, pa))
 			{
-				const Eigen::Vector3d n = fit.evecs.col(c);
-				Eigen::Matrix<double, 6, 1> J;
-				J << x.cast<double>().cross(n), n;
-				H += J * J.transpose();
+				rows.push_back({p.cast<double>(), pa});
+				np++;
 			}
-			ne++;
-		}
-		if (prior && o.prior_translation_sigma_m > 0 && o.prior_rotation_sigma_deg > 0)
-			problem.AddResidualBlock(
-				new ceres::AutoDiffCostFunction<PosePrior, 6, 4, 3>(new PosePrior{
-					Eigen::Quaterniond(prior->linear()).normalized(), prior->translation(),
-					1.0 / o.prior_translation_sigma_m,
-					1.0 / (o.prior_rotation_sigma_deg * M_PI / 180)}),
-				nullptr, qa, ta);
+		for (const auto& p : src_edges)
+			if (target.matchLine(T * p, gate, o, pa, pb))
+			{
+				rows.push_back({p.cast<double>(), pa});
+				rows.push_back({p.cast<double>(), pb});
+				ne++;
+			}
 		res.edge_matches = ne;
 		res.planar_matches = np;
-		if (ne + np < 6) break;	 // not enough constraints: keep the guess
-		ceres::Solver::Options so;
-		so.linear_solver_type = ceres::DENSE_QR;
-		so.max_num_iterations = o.lm_iterations;
-		so.num_threads = 1;
-		ceres::Solver::Summary summary;
-		ceres::Solve(so, &problem, &summary);
-		const Eigen::Quaterniond q_new(qa[3], qa[0], qa[1], qa[2]);
-		const Eigen::Vector3d t_new(ta[0], ta[1], ta[2]);
-		const double dt = (t_new - t).norm();
-		const double dr = q_new.angularDistance(q);
-		q = q_new.normalized();
-		t = t_new;
-		res.rmse_m = std::sqrt(2 * summary.final_cost / std::max<size_t>(1, ne * 3 + np));
-		res.information_eigenvalues =
-			Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>>(H).eigenvalues();
-		if (a >= 1.0 && dt < o.converged_translation_m && dr < o.converged_rotation_rad)
+		if (ne + np < 6) break;  // not enough constraints: keep the guess
+
+		const Problem prob{rows, o, priors};
+		const Eigen::Matrix3d R_start = R;
+		const Eigen::Vector3d t_start = t;
+		Mat6 H, info;
+		Vec6 g;
+		for (int k = 0; k < o.lm_iterations; k++)
+		{
+			info.setZero();
+			const double cost = prob.evaluate(R, t, &H, &g, &info);
+			res.information_eigenvalues =
+			    Eigen::SelfAdjointEigenSolver<Mat6>(info).eigenvalues();
+			// Levenberg–Marquardt: damp, try, accept if the cost drops.
+			bool accepted = false;
+			for (int tries = 0; tries < 6 && !accepted; tries++)
+			{
+				Mat6 A = H;
+				A.diagonal() += lambda * H.diagonal().cwiseMax(1e-9);
+				const Vec6 dx = A.ldlt().solve(-g);
+				if (!dx.allFinite()) break;
+				const Eigen::Matrix3d R_new = expSO3(dx.head<3>()) * R;
+				const Eigen::Vector3d t_new = t + dx.tail<3>();
+				if (prob.evaluate(R_new, t_new, nullptr, nullptr) < cost)
+				{
+					R = R_new;
+					t = t_new;
+					lambda = std::max(1e-7, lambda * 0.3);
+					accepted = true;
+					if (dx.head<3>().norm() < 0.1 * o.converged_rotation_rad &&
+					    dx.tail<3>().norm() < 0.1 * o.converged_translation_m)
+						k = o.lm_iterations;  // converged for these matches
+				}
+				else
+					lambda *= 10;
+			}
+			if (!accepted) break;
+		}
+		double sq = 0;
+		prob.evaluate(R, t, nullptr, nullptr, nullptr, &sq);
+		res.rmse_m = std::sqrt(sq / std::max<size_t>(1, rows.size()));
+		const double dt = (t - t_start).norm();
+		const double dr = Eigen::AngleAxisd(R * R_start.transpose()).angle();
+		if (a >= 1.0 && dt < o.converged_translation_m &&
+		    dr < o.converged_rotation_rad)
 		{
 			res.converged = true;
 			break;
 		}
 	}
-	res.T = Eigen::Translation3d(t) * q;
+	Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
+	out.linear() = Eigen::Quaterniond(R).normalized().toRotationMatrix();
+	out.translation() = t;
+	res.T = out;
 	return res;
 }
 

@@ -18,7 +18,8 @@ struct CloudAdaptor
 	}
 };
 using Index = nanoflann::KDTreeSingleIndexAdaptor<
-	nanoflann::L2_Simple_Adaptor<float, CloudAdaptor>, CloudAdaptor, 3, uint32_t>;
+    nanoflann::L2_Simple_Adaptor<float, CloudAdaptor>, CloudAdaptor, 3,
+    uint32_t>;
 }  // namespace
 
 struct KdTree::Impl
@@ -40,12 +41,12 @@ void KdTree::build(const std::vector<Eigen::Vector3f>& pts)
 		if (p.allFinite()) pts_.push_back(p);
 	impl_->adaptor.pts = &pts_;
 	impl_->index = std::make_unique<Index>(
-		3, impl_->adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));
+	    3, impl_->adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));
 	if (!pts_.empty()) impl_->index->buildIndex();
 }
 
-size_t KdTree::knn(const Eigen::Vector3f& q, size_t k, std::vector<uint32_t>& idx,
-				   std::vector<float>& d2) const
+size_t KdTree::knn(const Eigen::Vector3f& q, size_t k,
+                   std::vector<uint32_t>& idx, std::vector<float>& d2) const
 {
 	if (pts_.empty() || k == 0)
 	{
@@ -56,7 +57,8 @@ size_t KdTree::knn(const Eigen::Vector3f& q, size_t k, std::vector<uint32_t>& id
 	k = std::min(k, pts_.size());
 	idx.resize(k);
 	d2.resize(k);
-	const size_t n = impl_->index->knnSearch(q.data(), k, idx.data(), d2.data());
+	const size_t n =
+	    impl_->index->knnSearch(q.data(), k, idx.data(), d2.data());
 	idx.resize(n);
 	d2.resize(n);
 	return n;

@@ -8,35 +8,31 @@
 
 namespace forest_slam::odometry
 {
-void OdometryOptions::loadFromConfigFile(
-	const mrpt::config::CConfigFileBase& c, const std::string& s)
+void OdometryOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
+                                         const std::string& s)
 {
-	FS_LOAD(c, s, local_map_radius_m);
-	FS_LOAD(c, s, target_rebuild_distance_m);
-	FS_LOAD(c, s, target_rebuild_scans);
+	FS_LOAD(c, s, prune_every_scans);
+	FS_LOAD(c, s, use_imu);
 	FS_LOAD(c, s, min_matches);
 	FS_LOAD(c, s, degeneracy_ratio);
 	const std::string where = core::configOrigin(c) + ": [" + s + "] ";
-	if (!(local_map_radius_m > 0))
-		throw core::ConfigError(where + "local_map_radius_m must be > 0");
-	if (!(target_rebuild_distance_m >= 0) || target_rebuild_scans < 1)
-		throw core::ConfigError(
-			where + "target_rebuild_distance_m must be >= 0, target_rebuild_scans >= 1");
-	if (min_matches < 6) throw core::ConfigError(where + "min_matches must be >= 6");
+	if (prune_every_scans < 1)
+		throw core::ConfigError(where + "prune_every_scans must be >= 1");
+	if (min_matches < 6)
+		throw core::ConfigError(where + "min_matches must be >= 6");
 }
 
-void OdometryOptions::saveToConfigFile(
-	mrpt::config::CConfigFileBase& c, const std::string& s) const
+void OdometryOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
+                                       const std::string& s) const
 {
-	c.write(s, "local_map_radius_m", local_map_radius_m);
-	c.write(s, "target_rebuild_distance_m", target_rebuild_distance_m);
-	c.write(s, "target_rebuild_scans", target_rebuild_scans);
+	c.write(s, "prune_every_scans", prune_every_scans);
+	c.write(s, "use_imu", use_imu);
 	c.write(s, "min_matches", min_matches);
 	c.write(s, "degeneracy_ratio", degeneracy_ratio);
 }
 
 LidarOdometry::LidarOdometry(const OdometryConfig& cfg, map::CForestMap& map)
-	: cfg_(cfg), map_(map), lattice_(cfg.ground)
+    : cfg_(cfg), local_map_(cfg.local_map), map_(map), lattice_(cfg.ground)
 {
 }
 
@@ -46,21 +42,43 @@ using Clock = std::chrono::steady_clock;
 double msSince(Clock::time_point& t)
 {
 	const auto now = Clock::now();
-	const double ms = std::chrono::duration<double, std::milli>(now - t).count();
+	const double ms =
+	    std::chrono::duration<double, std::milli>(now - t).count();
 	t = now;
 	return ms;
 }
 }  // namespace
 
+Eigen::Matrix3d LidarOdometry::imuRotation(double t0_s, double t1_s) const
+{
+	const Eigen::Matrix3d Rb =
+	    imu_->rotationBetween(t0_s, t1_s).toRotationMatrix();
+	return R_body_lidar_.transpose() * Rb * R_body_lidar_;
+}
+
+Eigen::Isometry3d LidarOdometry::SweepMotion::at(const imu::ImuBuffer* imu_buf,
+                                                 const Eigen::Matrix3d& R_bl,
+                                                 double sweep_s, double s) const
+{
+	const double a = std::clamp(s / std::max(1e-6, sweep_s), 0.0, 1.0);
+	Eigen::Isometry3d T =
+	    core::interpolateIsometry(Eigen::Isometry3d::Identity(), end, a);
+	if (imu && imu_buf)
+		T.linear() =
+		    R_bl.transpose() *
+		    imu_buf->rotationBetween(t0_s, t0_s + s).toRotationMatrix() * R_bl;
+	return T;
+}
+
 LidarOdometry::Prepared LidarOdometry::prepare(
-	const core::ScanPoints& scan, const Eigen::Isometry3d& motion,
-	const Eigen::Isometry3d& predicted, ScanTiming& timing)
+    const core::ScanPoints& scan, const SweepMotion& motion,
+    const Eigen::Isometry3d& predicted, ScanTiming& timing)
 {
 	auto t = Clock::now();
 	Prepared out;
-	// Deskew into the frame of the first firing: a point fired at t moves
-	// with the motion fraction t/sweep (one transform per firing column).
-	const double sweep = std::max(1e-6, scan.sweep_s);
+	// Deskew into the frame of the first firing: a point fired at time s
+	// moves with the sensor's motion from 0 to s (IMU rotation when
+	// available, constant-velocity translation); one transform per column.
 	std::unordered_map<uint32_t, Eigen::Isometry3f> column_T;
 	auto& fin = out.points;
 	fin.reserve(scan.points.size());
@@ -70,12 +88,12 @@ LidarOdometry::Prepared LidarOdometry::prepare(
 		if (!raw.allFinite()) continue;
 		auto it = column_T.find(p.column);
 		if (it == column_T.end())
-			it = column_T
-					 .emplace(p.column, core::interpolateIsometry(
-											Eigen::Isometry3d::Identity(), motion,
-											std::clamp(p.t_s / sweep, 0.0, 1.0))
-											.cast<float>())
-					 .first;
+			it =
+			    column_T
+			        .emplace(p.column,
+			                 motion.at(imu_, R_body_lidar_, scan.sweep_s, p.t_s)
+			                     .cast<float>())
+			        .first;
 		features::FeatureInputPoint f;
 		f.xyz = it->second * raw;
 		f.ring = p.ring;
@@ -104,7 +122,8 @@ LidarOdometry::Prepared LidarOdometry::prepare(
 		}
 	}
 	const auto cl = cluster::hierarchicalKMeans(ng, cfg_.cluster);
-	for (size_t k = 0; k < ng_idx.size(); k++) fin[ng_idx[k]].cluster = cl.cluster[k];
+	for (size_t k = 0; k < ng_idx.size(); k++)
+		fin[ng_idx[k]].cluster = cl.cluster[k];
 	timing.cluster_ms += msSince(t);
 
 	// Features for registration; the decision factor of every point for the
@@ -123,44 +142,58 @@ void LidarOdometry::insert(const Prepared& s, const Eigen::Isometry3d& pose)
 	// filters keep the map small.
 	std::vector<Eigen::Vector3f> map_edges, map_planar;
 	for (size_t i = 0; i < s.points.size(); i++)
-		(s.feats.smoothness[i] > cfg_.features.edge_threshold ? map_edges : map_planar)
-			.push_back(s.points[i].xyz);
+		(s.feats.smoothness[i] > cfg_.features.edge_threshold ? map_edges
+		                                                      : map_planar)
+		    .push_back(s.points[i].xyz);
 	map_.insertFeatures(map_edges, map_planar, pose);
-}
-
-RegistrationResult LidarOdometry::registerToMap(
-	const Prepared& s, const Eigen::Isometry3d& predicted)
-{
-	const auto& o = cfg_.odometry;
-	if (scans_since_target_ < 0 || scans_since_target_ >= o.target_rebuild_scans ||
-		(predicted.translation() - target_centre_).norm() > o.target_rebuild_distance_m)
-	{
-		std::vector<Eigen::Vector3f> me, mp;
-		map_.collectNear(predicted.translation(), o.local_map_radius_m, me, mp);
-		target_.build(me, mp);
-		target_centre_ = predicted.translation();
-		scans_since_target_ = 0;
-	}
-	scans_since_target_++;
-	return registerFeatures(target_, s.edges, s.planar, predicted, cfg_.registration, &predicted);
+	// The odometry's local map in the map frame.
+	const Eigen::Isometry3f T = pose.cast<float>();
+	for (auto& p : map_edges) p = T * p;
+	for (auto& p : map_planar) p = T * p;
+	local_map_.insert(map_edges, map_planar);
 }
 
 OdometryStep LidarOdometry::processScan(const core::ScanPoints& scan)
 {
 	OdometryStep step;
 	const double stamp = scan.stamp_s;
-	// 1. Prediction: constant velocity, scaled to the time since last scan.
+	const double sweep = scan.sweep_s > 0 ? scan.sweep_s : last_period_s_;
+	// 1. Prediction: constant velocity scaled to the time since the last
+	// scan; the IMU, when it covers the interval, gives the rotation.
+	const bool use_imu =
+	    imu_ && cfg_.odometry.use_imu &&
+	    imu_->covers(scans_ > 0 ? last_stamp_s_ : stamp, stamp + sweep);
+	step.imu_used = use_imu;
 	Eigen::Isometry3d predicted = initial_pose_;
-	Eigen::Isometry3d motion = Eigen::Isometry3d::Identity();  // over this sweep
+	SweepMotion motion;
+	motion.imu = use_imu;
+	motion.t0_s = stamp;
 	if (scans_ > 0)
 	{
 		const double dt = stamp - last_stamp_s_;
-		const double period = scan.sweep_s > 0 ? scan.sweep_s : last_period_s_;
-		motion = core::interpolateIsometry(Eigen::Isometry3d::Identity(), velocity_,
-										   period / last_period_s_);
-		predicted = last_pose_ * core::interpolateIsometry(Eigen::Isometry3d::Identity(),
-														   velocity_, dt / last_period_s_);
+		motion.end = core::interpolateIsometry(
+		    Eigen::Isometry3d::Identity(), velocity_, sweep / last_period_s_);
+		Eigen::Isometry3d delta = core::interpolateIsometry(
+		    Eigen::Isometry3d::Identity(), velocity_, dt / last_period_s_);
+		if (use_imu) delta.linear() = imuRotation(last_stamp_s_, stamp);
+		predicted = last_pose_ * delta;
 	}
+	Eigen::Vector3d up;
+	RegistrationPriors priors;
+	priors.motion = &predicted;
+	Eigen::Quaterniond att;
+	if (use_imu && imu_->attitudeAt(stamp, att))
+	{
+		up = R_body_lidar_.transpose() *
+		     (att.conjugate() * Eigen::Vector3d::UnitZ());
+		priors.up_in_source = &up;
+	}
+	else if (imu_ && cfg_.odometry.use_imu && scans_ > 0)
+		core::logOnce(
+		    core::LogLevel::Warn, "odometry-imu-gap",
+		    "scan at t=" + std::to_string(stamp) +
+		        " s: no IMU samples cover it; constant-velocity prediction and "
+		        "deskew, no gravity prior (further such scans not logged)");
 
 	// 2-5. Deskew, ground, clusters, features.
 	const Prepared cur = prepare(scan, motion, predicted, step.timing);
@@ -170,56 +203,76 @@ OdometryStep LidarOdometry::processScan(const core::ScanPoints& scan)
 	// 6. Scan-to-map registration.
 	auto t = Clock::now();
 	Eigen::Isometry3d pose = predicted;
-	if (scans_ > 0 && !map_.isEmpty())
+	if (scans_ > 0 && !local_map_.empty())
 	{
-		step.registration = registerToMap(cur, predicted);
+		step.registration =
+		    registerFeatures(local_map_, cur.edges, cur.planar, predicted,
+		                     cfg_.registration, priors);
 		if (scans_ == 1 && first_scan_)
 		{
-			// Bootstrap: the first scan went into the map without deskew
-			// (motion unknown). Now that the motion is estimated, rebuild the
-			// map from the deskewed first scan and register again.
-			// A few rounds: each better motion gives a better first scan.
+			// Bootstrap: the first scan went into the map without the
+			// translation part of the deskew (motion unknown). Now that the
+			// motion is estimated, rebuild the map from the deskewed first scan
+			// and register again; a few rounds: each better motion gives a
+			// better map.
 			const double dt = std::max(1e-3, stamp - last_stamp_s_);
 			for (int round = 0; round < 3; round++)
 			{
-				const Eigen::Isometry3d v = last_pose_.inverse() * step.registration.T;
-				const Eigen::Isometry3d motion0 = core::interpolateIsometry(
-					Eigen::Isometry3d::Identity(), v, first_scan_->sweep_s / dt);
+				const Eigen::Isometry3d v =
+				    last_pose_.inverse() * step.registration.T;
+				SweepMotion m0;
+				m0.imu = first_scan_imu_;
+				m0.t0_s = first_scan_->stamp_s;
+				m0.end =
+				    core::interpolateIsometry(Eigen::Isometry3d::Identity(), v,
+				                              first_scan_->sweep_s / dt);
 				ScanTiming ignored;
 				map_.clear();
-				insert(prepare(*first_scan_, motion0, last_pose_, ignored), last_pose_);
-				scans_since_target_ = -1;  // the map changed: rebuild
-				step.registration = registerToMap(cur, predicted);
+				local_map_.clear();
+				insert(prepare(*first_scan_, m0, last_pose_, ignored),
+				       last_pose_);
+				step.registration =
+				    registerFeatures(local_map_, cur.edges, cur.planar,
+				                     predicted, cfg_.registration, priors);
 			}
 		}
 		first_scan_.reset();
 		const auto& r = step.registration;
 		const auto& ev = r.information_eigenvalues;
-		step.degenerate = ev[5] > 0 && ev[0] < cfg_.odometry.degeneracy_ratio * ev[5];
-		if (r.edge_matches + r.planar_matches >= static_cast<size_t>(cfg_.odometry.min_matches))
+		step.degenerate =
+		    ev[5] > 0 && ev[0] < cfg_.odometry.degeneracy_ratio * ev[5];
+		if (r.edge_matches + r.planar_matches >=
+		    static_cast<size_t>(cfg_.odometry.min_matches))
 		{
 			pose = r.T;
 			step.registered = true;
 		}
 		else
-			core::logOnce(core::LogLevel::Warn, "odometry-few-matches",
-						  "scan at t=" + std::to_string(stamp) + " s: only " +
-							  std::to_string(r.edge_matches + r.planar_matches) +
-							  " feature matches; the motion model carries the pose "
-							  "(further such scans counted in the summary)");
+			core::logOnce(
+			    core::LogLevel::Warn, "odometry-few-matches",
+			    "scan at t=" + std::to_string(stamp) + " s: only " +
+			        std::to_string(r.edge_matches + r.planar_matches) +
+			        " feature matches; the motion model carries the pose "
+			        "(further such scans counted in the summary)");
 		if (step.degenerate)
-			core::logOnce(core::LogLevel::Warn, "odometry-degenerate",
-						  "scan at t=" + std::to_string(stamp) +
-							  " s: degenerate geometry (few constraints in some "
-							  "direction, the motion model holds it); further "
-							  "occurrences counted");
+			core::logOnce(
+			    core::LogLevel::Warn, "odometry-degenerate",
+			    "scan at t=" + std::to_string(stamp) +
+			        " s: degenerate geometry (few constraints in some "
+			        "direction, the motion model holds it); further "
+			        "occurrences counted");
 	}
 	else if (scans_ == 0)
+	{
 		first_scan_ = scan;
+		first_scan_imu_ = use_imu;
+	}
 	step.timing.register_ms = msSince(t);
 
 	// 7. Map update and motion model.
 	insert(cur, pose);
+	if (scans_ % cfg_.odometry.prune_every_scans == 0)
+		local_map_.prune(pose.translation());
 	if (scans_ > 0)
 	{
 		last_period_s_ = std::max(1e-3, stamp - last_stamp_s_);

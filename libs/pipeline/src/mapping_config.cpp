@@ -14,6 +14,8 @@ MappingConfig MappingConfig::load(core::TrackedConfig& cfg)
 	m.trees.loadFromConfigFile(cfg, "trees");
 	m.odometry.odometry.loadFromConfigFile(cfg, "odometry");
 	m.odometry.registration.loadFromConfigFile(cfg, "registration");
+	m.odometry.local_map.loadFromConfigFile(cfg, "local_map");
+	m.odometry.imu.loadFromConfigFile(cfg, "imu");
 	m.odometry.ground.loadFromConfigFile(cfg, "ground");
 	m.odometry.cluster.loadFromConfigFile(cfg, "cluster");
 	m.odometry.features.loadFromConfigFile(cfg, "features");
@@ -48,6 +50,8 @@ std::string MappingConfig::dump() const
 	trees.saveToConfigFile(mem, "trees");
 	odometry.odometry.saveToConfigFile(mem, "odometry");
 	odometry.registration.saveToConfigFile(mem, "registration");
+	odometry.local_map.saveToConfigFile(mem, "local_map");
+	odometry.imu.saveToConfigFile(mem, "imu");
 	odometry.ground.saveToConfigFile(mem, "ground");
 	odometry.cluster.saveToConfigFile(mem, "cluster");
 	odometry.features.saveToConfigFile(mem, "features");

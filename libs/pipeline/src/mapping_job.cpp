@@ -248,6 +248,7 @@ MappingResult runMapping(const MappingJob& job, const MappingConfig& cfg,
 		FS_LOG_WARN("signal " << g_stop_signal.load()
 							  << " received: stopped, writing outputs");
 	}
+	pipeline.finish();
 	source.finish(pipeline);
 	result.stats = pipeline.stats();
 	result.wall_seconds = std::chrono::duration<double>(
@@ -294,6 +295,8 @@ std::vector<std::string> writeOutputs(
 		   << "  \"scans_degenerate\": " << s.scans_degenerate << ",\n"
 		   << "  \"scans_unregistered\": " << s.scans_unregistered << ",\n"
 		   << "  \"scans_light\": " << s.scans_light << ",\n"
+		   << "  \"scans_imu\": " << s.scans_imu << ",\n"
+		   << "  \"imu_rejected\": " << s.imu_rejected << ",\n"
 		   << "  \"imu\": " << s.imu << ",\n"
 		   << "  \"gnss\": " << s.gnss << ",\n"
 		   << "  \"other\": " << s.other << ",\n"

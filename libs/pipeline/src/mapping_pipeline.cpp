@@ -1,6 +1,6 @@
 #include <forest_slam/core/log.h>
-#include <forest_slam/ingest/velodyne.h>
 #include <forest_slam/core/scan_points.h>
+#include <forest_slam/ingest/velodyne.h>
 #include <forest_slam/pipeline/mapping_pipeline.h>
 
 #include <mrpt/obs/CObservationGPS.h>
@@ -11,27 +11,31 @@
 
 #include <algorithm>
 #include <cmath>
+#include <deque>
 #include <stdexcept>
 
 namespace forest_slam::pipeline
 {
-MappingPipeline::MappingPipeline(
-	const MappingConfig& cfg, std::optional<core::Trajectory> poses)
-	: cfg_(cfg), poses_(std::move(poses)), map_(cfg.forest_map)
+MappingPipeline::MappingPipeline(const MappingConfig& cfg,
+                                 std::optional<core::Trajectory> poses)
+    : cfg_(cfg),
+      poses_(std::move(poses)),
+      map_(cfg.forest_map),
+      imu_buffer_(cfg.odometry.imu)
 {
 	if (cfg_.pipeline.poseSource() == PoseSource::Trajectory)
 	{
 		if (!poses_ || poses_->size() < 2)
 			throw std::invalid_argument(
-				"[pipeline] pose_source=trajectory needs a trajectory with at "
-				"least 2 poses (forest-slam map --poses FILE.tum)");
+			    "[pipeline] pose_source=trajectory needs a trajectory with at "
+			    "least 2 poses (forest-slam map --poses FILE.tum)");
 	}
 }
 
 bool MappingPipeline::reachedScanLimit() const
 {
 	return cfg_.pipeline.max_scans > 0 &&
-		   stats_.scans_mapped >= cfg_.pipeline.max_scans;
+	       stats_.scans_mapped >= cfg_.pipeline.max_scans;
 }
 
 void MappingPipeline::process(const mrpt::obs::CObservation::Ptr& obs)
@@ -45,7 +49,8 @@ void MappingPipeline::process(const mrpt::obs::CObservation::Ptr& obs)
 		if (light_scans_ && processLightScan(*obs)) return;
 		if (auto rot = std::dynamic_pointer_cast<mrpt::obs::CObservationRotatingScan>(obs))
 			processScan(*rot);
-		else if (auto vel = std::dynamic_pointer_cast<mrpt::obs::CObservationVelodyneScan>(obs))
+		else if (auto vel = std::dynamic_pointer_cast<
+		             mrpt::obs::CObservationVelodyneScan>(obs))
 		{
 			// Our decoder, not MRPT 2.5.8's fromVelodyne(), which drops half
 			// of the returns (see doc/ingest.md).
@@ -69,28 +74,36 @@ void MappingPipeline::process(const mrpt::obs::CObservation::Ptr& obs)
 		else
 		{
 			stats_.other++;
-			core::logOnce(core::LogLevel::Warn, std::string("lidar-type:") + obs->GetRuntimeClass()->className,
-						  "observations labelled '" + label + "' of type " +
-							  obs->GetRuntimeClass()->className +
-							  " are not a rotating lidar scan; ignored");
+			core::logOnce(
+			    core::LogLevel::Warn,
+			    std::string("lidar-type:") + obs->GetRuntimeClass()->className,
+			    "observations labelled '" + label + "' of type " +
+			        obs->GetRuntimeClass()->className +
+			        " are not a rotating lidar scan; ignored");
 		}
 	}
 	else if (label == o.imu_label &&
-			 std::dynamic_pointer_cast<mrpt::obs::CObservationIMU>(obs))
+	         std::dynamic_pointer_cast<mrpt::obs::CObservationIMU>(obs))
 	{
-		stats_.imu++;  // the IMU/deskew stage (issue 5) will consume these
+		stats_.imu++;
 		if (!static_pose_) accumulateGravity(*obs);
+		if (cfg_.pipeline.poseSource() == PoseSource::Odometry &&
+		    cfg_.odometry.odometry.use_imu)
+		{
+			addImuSample(*obs);
+			drainPending(false);
+		}
 	}
 	else if (label == o.gnss_label &&
-			 std::dynamic_pointer_cast<mrpt::obs::CObservationGPS>(obs))
-		stats_.gnss++;	// consumed by the back-end (issue 8)
+	         std::dynamic_pointer_cast<mrpt::obs::CObservationGPS>(obs))
+		stats_.gnss++;  // consumed by the back-end (issue 8)
 	else
 	{
 		stats_.other++;
 		core::logOnce(core::LogLevel::Info, "label:" + label,
-					  "observations with sensor label '" + label + "' (" +
-						  obs->GetRuntimeClass()->className +
-						  ") are not used by this configuration");
+		              "observations with sensor label '" + label + "' (" +
+		                  obs->GetRuntimeClass()->className +
+		                  ") are not used by this configuration");
 	}
 }
 
@@ -100,29 +113,91 @@ void MappingPipeline::accumulateGravity(const mrpt::obs::CObservation& o)
 	using mrpt::obs::IMU_X_ACC;
 	using mrpt::obs::IMU_Y_ACC;
 	using mrpt::obs::IMU_Z_ACC;
-	if (!imu.has(IMU_X_ACC) || !imu.has(IMU_Y_ACC) || !imu.has(IMU_Z_ACC)) return;
-	const Eigen::Vector3d a(imu.get(IMU_X_ACC), imu.get(IMU_Y_ACC), imu.get(IMU_Z_ACC));
-	if (!a.allFinite() || a.norm() < 5.0 || a.norm() > 15.0) return;  // not at rest
+	if (!imu.has(IMU_X_ACC) || !imu.has(IMU_Y_ACC) || !imu.has(IMU_Z_ACC))
+		return;
+	const Eigen::Vector3d a(imu.get(IMU_X_ACC), imu.get(IMU_Y_ACC),
+	                        imu.get(IMU_Z_ACC));
+	if (!a.allFinite() || a.norm() < 5.0 || a.norm() > 15.0)
+		return;  // not at rest
 	mrpt::poses::CPose3D imu_on_vehicle;
 	imu.getSensorPose(imu_on_vehicle);
 	gravity_sum_vehicle_ += imu_on_vehicle.getRotationMatrix().asEigen() * a;
 	gravity_samples_++;
 }
 
+void MappingPipeline::addImuSample(const mrpt::obs::CObservation& o)
+{
+	const auto& imu = dynamic_cast<const mrpt::obs::CObservationIMU&>(o);
+	using namespace mrpt::obs;
+	if (!imu.has(IMU_X_ACC) || !imu.has(IMU_Y_ACC) || !imu.has(IMU_Z_ACC) ||
+	    !imu.has(IMU_WX) || !imu.has(IMU_WY) || !imu.has(IMU_WZ))
+	{
+		core::logOnce(
+		    core::LogLevel::Warn, "imu-fields",
+		    "IMU observations without accelerations and angular rates: not "
+		    "used by the odometry");
+		return;
+	}
+	mrpt::poses::CPose3D imu_on_vehicle;
+	imu.getSensorPose(imu_on_vehicle);
+	const Eigen::Matrix3d R = imu_on_vehicle.getRotationMatrix().asEigen();
+	const Eigen::Vector3d w(imu.get(IMU_WX), imu.get(IMU_WY), imu.get(IMU_WZ));
+	const Eigen::Vector3d a(imu.get(IMU_X_ACC), imu.get(IMU_Y_ACC),
+	                        imu.get(IMU_Z_ACC));
+	const double t = mrpt::Clock::toDouble(imu.timestamp);
+	if (!imu_buffer_.add(t, R * w, R * a))
+	{
+		stats_.imu_rejected++;
+		core::logOnce(
+		    core::LogLevel::Warn, "imu-rejected",
+		    "IMU sample at t=" + std::to_string(t) +
+		        " s is not finite or not after the previous sample (" +
+		        std::to_string(imu_buffer_.latestTime()) +
+		        " s): ignored (further such samples counted as imu_rejected)");
+	}
+}
+
+void MappingPipeline::drainPending(bool all)
+{
+	// A scan waits for the IMU samples of its sweep; if the IMU lags more
+	// than max_pending scans (or stalls) it goes on without them.
+	constexpr size_t max_pending = 8;
+	while (!pending_.empty() && !reachedScanLimit())
+	{
+		auto& s = pending_.front();
+		const bool covered =
+		    imu_buffer_.latestTime() >= s.pts.stamp_s + s.pts.sweep_s;
+		if (!all && !covered && pending_.size() <= max_pending &&
+		    stats_.imu > 0)
+			break;
+		runOdometry(s);
+		pending_.pop_front();
+	}
+	if (!pending_.empty() && reachedScanLimit()) pending_.clear();
+}
+
+void MappingPipeline::finish()
+{
+	drainPending(true);
+}
+
 Eigen::Matrix3d MappingPipeline::levelledOrientation(
-	const Eigen::Vector3d& up_vehicle, const Eigen::Matrix3d& lidar_on_vehicle)
+    const Eigen::Vector3d& up_vehicle, const Eigen::Matrix3d& lidar_on_vehicle)
 {
 	const Eigen::Matrix3d R_level =
-		Eigen::Quaterniond::FromTwoVectors(up_vehicle.normalized(), Eigen::Vector3d::UnitZ())
-			.toRotationMatrix();
+	    Eigen::Quaterniond::FromTwoVectors(up_vehicle.normalized(),
+	                                       Eigen::Vector3d::UnitZ())
+	        .toRotationMatrix();
 	const Eigen::Matrix3d R = R_level * lidar_on_vehicle;
 	// Heading of the lidar x axis projected on the horizontal plane.
 	const double yaw = std::atan2(R(1, 0), R(0, 0));
-	return Eigen::AngleAxisd(-yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix() * R;
+	return Eigen::AngleAxisd(-yaw, Eigen::Vector3d::UnitZ())
+	           .toRotationMatrix() *
+	       R;
 }
 
 Eigen::Isometry3d MappingPipeline::staticLidarPose(
-	const mrpt::poses::CPose3D& lidar_on_vehicle)
+    const mrpt::poses::CPose3D& lidar_on_vehicle)
 {
 	if (!static_pose_)
 	{
@@ -130,52 +205,82 @@ Eigen::Isometry3d MappingPipeline::staticLidarPose(
 		if (gravity_samples_ > 0)
 		{
 			T.linear() = levelledOrientation(
-				gravity_sum_vehicle_ / static_cast<double>(gravity_samples_),
-				lidar_on_vehicle.getRotationMatrix().asEigen());
+			    gravity_sum_vehicle_ / static_cast<double>(gravity_samples_),
+			    lidar_on_vehicle.getRotationMatrix().asEigen());
 			FS_LOG_INFO("static pose: map frame levelled with gravity from "
-						<< gravity_samples_ << " IMU samples");
+			            << gravity_samples_ << " IMU samples");
 		}
 		else
 			core::logOnce(core::LogLevel::Warn, "static-no-imu",
-						  "static pose source without IMU samples before the "
-						  "first scan: the map frame is the first lidar frame "
-						  "(not levelled)");
+			              "static pose source without IMU samples before the "
+			              "first scan: the map frame is the first lidar frame "
+			              "(not levelled)");
 		static_pose_ = T;
 	}
 	return *static_pose_;
 }
 
 void MappingPipeline::mapWithOdometry(
-	const mrpt::obs::CObservationRotatingScan& scan, core::ScanPoints& pts)
+    const mrpt::obs::CObservationRotatingScan& scan, core::ScanPoints& pts)
 {
 	const auto& po = cfg_.pipeline;
 	auto& v = pts.points;
 	v.erase(std::remove_if(v.begin(), v.end(),
-						   [&](const core::ScanPoint& p) {
-							   return !(p.range_m >= po.min_range_m &&
-										p.range_m <= po.max_range_m) ||
-									  !std::isfinite(p.x) || !std::isfinite(p.y) ||
-									  !std::isfinite(p.z);
-						   }),
-			v.end());
+	                       [&](const core::ScanPoint& p)
+	                       {
+		                       return !(p.range_m >= po.min_range_m &&
+		                                p.range_m <= po.max_range_m) ||
+		                              !std::isfinite(p.x) ||
+		                              !std::isfinite(p.y) ||
+		                              !std::isfinite(p.z);
+	                       }),
+	        v.end());
 	if (v.empty())
 	{
 		stats_.scans_empty++;
 		core::logOnce(core::LogLevel::Warn, "scan-empty",
-					  "lidar scan at t=" + std::to_string(pts.stamp_s) +
-						  " s has no valid return: skipped");
+		              "lidar scan at t=" + std::to_string(pts.stamp_s) +
+		                  " s has no valid return: skipped");
 		return;
 	}
+	pending_.push_back({std::move(pts), scan.sensorPose});
+	drainPending(false);
+}
+
+void MappingPipeline::runOdometry(PendingScan& s)
+{
 	if (!odometry_)
 	{
-		odometry_ = std::make_unique<odometry::LidarOdometry>(cfg_.odometry, map_);
-		odometry_->setInitialPose(staticLidarPose(scan.sensorPose));
+		odometry_ =
+		    std::make_unique<odometry::LidarOdometry>(cfg_.odometry, map_);
+		// The map frame: levelled with the IMU attitude filter at the first
+		// scan (mean of its first samples) when there is one, else with the
+		// gravity seen before the first scan.
+		Eigen::Quaterniond att;
+		if (cfg_.odometry.odometry.use_imu &&
+		    imu_buffer_.attitudeAt(s.pts.stamp_s, att))
+		{
+			Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+			T.linear() = levelledOrientation(
+			    att.conjugate() * Eigen::Vector3d::UnitZ(),
+			    s.sensor_pose.getRotationMatrix().asEigen());
+			static_pose_ = T;
+			odometry_->setInitialPose(T);
+		}
+		else
+			odometry_->setInitialPose(staticLidarPose(s.sensor_pose));
+		if (cfg_.odometry.odometry.use_imu)
+			odometry_->setImu(&imu_buffer_,
+			                  s.sensor_pose.getRotationMatrix().asEigen());
 	}
-	const auto step = odometry_->processScan(pts);
+	const auto step = odometry_->processScan(s.pts);
+	imu_buffer_.pruneBefore(s.pts.stamp_s - 1.0);
 	trajectory_.push_back(step.pose);
 	stats_.scans_mapped++;
 	stats_.scans_degenerate += step.degenerate;
-	stats_.scans_unregistered += (!step.registered && odometry_->scansProcessed() > 1);
+	stats_.scans_unregistered +=
+	    (!step.registered && odometry_->scansProcessed() > 1);
+	stats_.scans_imu += step.imu_used;
 	stats_.stage_ms.push_back(step.timing);
 }
 
@@ -189,21 +294,22 @@ bool MappingPipeline::lidarPoseAt(double t_s, Eigen::Isometry3d& out) const
 	return core::interpolatePose(*poses_, t_s, out, 1e-3);
 }
 
-void MappingPipeline::processScan(const mrpt::obs::CObservationRotatingScan& scan)
+void MappingPipeline::processScan(
+    const mrpt::obs::CObservationRotatingScan& scan)
 {
 	stats_.scans_in++;
 	const double stamp = mrpt::Clock::toDouble(scan.timestamp);
 	if (stats_.scans_in == 1) stats_.first_stamp_s = stamp;
 	if (!std::isfinite(stamp) ||
-		(have_last_scan_ && stamp <= last_scan_stamp_s_))
+	    (have_last_scan_ && stamp <= last_scan_stamp_s_))
 	{
 		stats_.scans_out_of_order++;
 		core::logOnce(core::LogLevel::Warn, "scan-time-order",
-					  "lidar scan " + std::to_string(stats_.scans_in - 1) +
-						  " has time " + std::to_string(stamp) +
-						  " s, not after the previous scan (" +
-						  std::to_string(last_scan_stamp_s_) +
-						  " s): skipped (further such scans counted silently)");
+		              "lidar scan " + std::to_string(stats_.scans_in - 1) +
+		                  " has time " + std::to_string(stamp) +
+		                  " s, not after the previous scan (" +
+		                  std::to_string(last_scan_stamp_s_) +
+		                  " s): skipped (further such scans counted silently)");
 		return;
 	}
 	have_last_scan_ = true;
@@ -219,8 +325,8 @@ void MappingPipeline::processScan(const mrpt::obs::CObservationRotatingScan& sca
 	{
 		stats_.scans_unreadable++;
 		core::logOnce(core::LogLevel::Warn, "scan-unreadable",
-					  "lidar scan " + std::to_string(stats_.scans_in - 1) +
-						  " cannot be decoded: " + e.what() + " (skipped)");
+		              "lidar scan " + std::to_string(stats_.scans_in - 1) +
+		                  " cannot be decoded: " + e.what() + " (skipped)");
 		return;
 	}
 	stats_.points_in += pts.points.size();
@@ -234,12 +340,12 @@ void MappingPipeline::processScan(const mrpt::obs::CObservationRotatingScan& sca
 		staticLidarPose(scan.sensorPose);
 	Eigen::Isometry3d scan_pose;
 	if (!lidarPoseAt(stamp, scan_pose) ||
-		(cfg_.pipeline.deskew && !lidarPoseAt(stamp + pts.sweep_s, scan_pose)))
+	    (cfg_.pipeline.deskew && !lidarPoseAt(stamp + pts.sweep_s, scan_pose)))
 	{
 		stats_.scans_outside_poses++;
 		core::logOnce(core::LogLevel::Warn, "scan-no-pose",
-					  "lidar scan at t=" + std::to_string(stamp) +
-						  " s is outside the --poses trajectory: skipped");
+		              "lidar scan at t=" + std::to_string(stamp) +
+		                  " s is outside the --poses trajectory: skipped");
 		return;
 	}
 	lidarPoseAt(stamp, scan_pose);
@@ -249,13 +355,15 @@ void MappingPipeline::processScan(const mrpt::obs::CObservationRotatingScan& sca
 	std::vector<std::vector<const core::ScanPoint*>> rings(scan.rowCount);
 	for (const auto& p : pts.points)
 		if (p.range_m >= po.min_range_m && p.range_m <= po.max_range_m &&
-			std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z))
+		    std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z))
 			rings[p.ring].push_back(&p);
 
 	// Deskew poses per firing column, computed once and shared by all rings.
 	std::vector<Eigen::Isometry3f> column_pose(scan.columnCount);
 	std::vector<uint8_t> column_done(scan.columnCount, 0);
-	auto poseOfColumn = [&](const core::ScanPoint& p) -> const Eigen::Isometry3f& {
+	auto poseOfColumn =
+	    [&](const core::ScanPoint& p) -> const Eigen::Isometry3f&
+	{
 		if (!column_done[p.column])
 		{
 			Eigen::Isometry3d T = scan_pose;
@@ -277,17 +385,17 @@ void MappingPipeline::processScan(const mrpt::obs::CObservationRotatingScan& sca
 		// Smoothness on the raw ring order (sensor frame); each point then
 		// moves with the pose at its own firing time (deskew).
 		const auto edge = map::smoothnessEdgeFlags(
-			ring_xyz, mo.smoothness_half_window, mo.edge_smoothness_threshold);
+		    ring_xyz, mo.smoothness_half_window, mo.edge_smoothness_threshold);
 		for (size_t i = 0; i < ring.size(); i++)
 			(edge[i] ? edge_map : planar_map)
-				.push_back(poseOfColumn(*ring[i]) * ring_xyz[i]);
+			    .push_back(poseOfColumn(*ring[i]) * ring_xyz[i]);
 	}
 	if (valid == 0)
 	{
 		stats_.scans_empty++;
 		core::logOnce(core::LogLevel::Warn, "scan-empty",
-					  "lidar scan at t=" + std::to_string(stamp) +
-						  " s has no valid return: skipped");
+		              "lidar scan at t=" + std::to_string(stamp) +
+		                  " s has no valid return: skipped");
 		return;
 	}
 	map_.insertFeatures(edge_map, planar_map);

@@ -1,7 +1,7 @@
 #pragma once
 // Transform estimation between feature sets (paper §4.4–4.5): point-to-line
 // residuals for edge points and point-to-plane residuals for planar points,
-// solved with Levenberg–Marquardt (Ceres) under a robust (Huber) loss, with
+// solved with Levenberg–Marquardt under a robust (Huber) loss, with
 // correspondences re-found by k-NN each outer iteration. The same code does
 // scan-to-scan (target = previous scan) and scan-to-map (target = local map).
 #include <forest_slam/odometry/kdtree.h>
@@ -14,20 +14,20 @@ namespace forest_slam::odometry
 {
 struct RegistrationOptions : public mrpt::config::CLoadableOptions
 {
-	int outer_iterations = 12;	///< correspondence searches
-	int lm_iterations = 8;	///< Ceres LM iterations per outer iteration
+	int outer_iterations = 6;  ///< correspondence searches
+	int lm_iterations = 4;     ///< LM iterations per correspondence search
 	/** Correspondence gate: shrinks geometrically from max to min over the
 	 * first half of the outer iterations (coarse to fine: far matches pull
 	 * a poor guess in, near matches make the final estimate precise). */
 	double max_correspondence_m = 1.0;
 	double min_correspondence_m = 0.3;
-	int knn = 8;  ///< neighbours to fit a plane
+	int knn = 5;  ///< neighbours to fit a plane
 	/** Neighbours to fit a line: few, so the two silhouettes of one stem
 	 * (a stem diameter apart) are not blended into one line. */
 	int edge_knn = 4;
 	/** The k neighbours must lie within this of the query (the nearest one
 	 * within the correspondence gate): voxelized maps are sparse. */
-	double max_neighbourhood_m = 1.0;
+	double max_neighbourhood_m = 0.5;
 	double huber_m = 0.1;  ///< robust loss scale
 	/** Plane fit accepted if its smallest eigenvalue is below this fraction
 	 * of the largest; line fit if the largest dominates the middle one by
@@ -40,27 +40,66 @@ struct RegistrationOptions : public mrpt::config::CLoadableOptions
 	 * the pose, hundreds of residuals outweigh it. 0 disables. */
 	double prior_translation_sigma_m = 0.1;
 	double prior_rotation_sigma_deg = 1.0;
+	/** IMU gravity prior on roll and pitch (when the caller gives "up"):
+	 * the accelerometer sees gravity, so roll/pitch cannot drift [deg]. 0
+	 * disables. */
+	double gravity_sigma_deg = 0.5;
 	/** Converged when the update is below these. */
 	double converged_translation_m = 1e-4;
 	double converged_rotation_rad = 1e-5;
 
 	void loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
-							const std::string& section) override;
+	                        const std::string& section) override;
 	void saveToConfigFile(mrpt::config::CConfigFileBase& c,
-						  const std::string& section) const override;
+	                      const std::string& section) const override;
 };
 
-/** Target feature clouds with their search indices. */
-struct FeatureTarget
+/** One scalar residual: the signed distance n.x + d of the transformed
+ * source point x to a plane (unit n). A point-to-line match is two rows,
+ * the two orthogonal planes that contain the line. */
+struct PlaneRow
+{
+	Eigen::Vector3d n = Eigen::Vector3d::UnitZ();
+	double d = 0;
+};
+
+/** What a registration matches against: scan-to-scan (FeatureTarget, k-d
+ * trees over the previous scan's features) or scan-to-map (LocalMap). */
+class RegistrationTarget
+{
+   public:
+	virtual ~RegistrationTarget() = default;
+	/** The plane of the planar neighbourhood of x, if one lies within `gate`.
+	 */
+	virtual bool matchPlane(const Eigen::Vector3f& x, double gate,
+	                        const RegistrationOptions& o,
+	                        PlaneRow& out) const = 0;
+	/** The line of the edge neighbourhood of x, if one lies within `gate`. */
+	virtual bool matchLine(const Eigen::Vector3f& x, double gate,
+	                       const RegistrationOptions& o, PlaneRow& a,
+	                       PlaneRow& b) const = 0;
+};
+
+/** Target feature clouds with their k-d tree indices (nanoflann). */
+struct FeatureTarget : public RegistrationTarget
 {
 	KdTree edges, planar;
 	void build(const std::vector<Eigen::Vector3f>& edge_pts,
-			   const std::vector<Eigen::Vector3f>& planar_pts)
+	           const std::vector<Eigen::Vector3f>& planar_pts)
 	{
 		edges.build(edge_pts);
 		planar.build(planar_pts);
 	}
+	bool matchPlane(const Eigen::Vector3f& x, double gate,
+	                const RegistrationOptions& o, PlaneRow& out) const override;
+	bool matchLine(const Eigen::Vector3f& x, double gate,
+	               const RegistrationOptions& o, PlaneRow& a,
+	               PlaneRow& b) const override;
 };
+
+/** Line as two orthogonal planes through `a` (unit direction `dir`). */
+void lineToPlanes(const Eigen::Vector3d& a, const Eigen::Vector3d& dir,
+                  PlaneRow& p, PlaneRow& q);
 
 struct RegistrationResult
 {
@@ -68,19 +107,45 @@ struct RegistrationResult
 	int iterations = 0;
 	bool converged = false;
 	size_t edge_matches = 0, planar_matches = 0;
-	double rmse_m = 0;	///< of the final residuals
+	double rmse_m = 0;  ///< of the final residuals
 	/** Eigenvalues of the 6x6 normal matrix (ascending): small ones mark
 	 * directions the geometry does not constrain (degeneracy). */
 	Eigen::Matrix<double, 6, 1> information_eigenvalues =
-		Eigen::Matrix<double, 6, 1>::Zero();
+	    Eigen::Matrix<double, 6, 1>::Zero();
 };
 
-/** Estimates T such that T * source ≈ target, starting from `initial`;
- * with `prior`, adds the motion-model prior factor centred on it. */
+/** Optional priors of a registration. */
+struct RegistrationPriors
+{
+	/** Motion-model prediction: holds the pose where the geometry is weak. */
+	const Eigen::Isometry3d* motion = nullptr;
+	/** "Up" (against gravity) in the source frame, from the IMU attitude:
+	 * keeps roll and pitch on gravity (sigma: gravity_sigma_deg). */
+	const Eigen::Vector3d* up_in_source = nullptr;
+};
+
+/** Estimates T such that T * source ≈ target, starting from `initial`:
+ * Levenberg–Marquardt on SE(3) with analytic Jacobians and a Huber loss
+ * (iteratively reweighted), correspondences re-found each outer iteration
+ * with a shrinking gate. */
 RegistrationResult registerFeatures(
-	const FeatureTarget& target, const std::vector<Eigen::Vector3f>& src_edges,
-	const std::vector<Eigen::Vector3f>& src_planar,
-	const Eigen::Isometry3d& initial, const RegistrationOptions& opts,
-	const Eigen::Isometry3d* prior = nullptr);
+    const RegistrationTarget& target,
+    const std::vector<Eigen::Vector3f>& src_edges,
+    const std::vector<Eigen::Vector3f>& src_planar,
+    const Eigen::Isometry3d& initial, const RegistrationOptions& opts,
+    const RegistrationPriors& priors = {});
+
+/** Convenience: motion prior only (scan-to-scan and older callers). */
+inline RegistrationResult registerFeatures(
+    const RegistrationTarget& target,
+    const std::vector<Eigen::Vector3f>& src_edges,
+    const std::vector<Eigen::Vector3f>& src_planar,
+    const Eigen::Isometry3d& initial, const RegistrationOptions& opts,
+    const Eigen::Isometry3d* prior)
+{
+	RegistrationPriors p;
+	p.motion = prior;
+	return registerFeatures(target, src_edges, src_planar, initial, opts, p);
+}
 
 }  // namespace forest_slam::odometry

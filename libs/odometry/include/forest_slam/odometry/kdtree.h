@@ -21,7 +21,7 @@ class KdTree
 	/** Up to k nearest points: indices into points() and squared distances,
 	 * nearest first. */
 	size_t knn(const Eigen::Vector3f& q, size_t k, std::vector<uint32_t>& idx,
-			   std::vector<float>& d2) const;
+	           std::vector<float>& d2) const;
 
    private:
 	struct Impl;

@@ -1,17 +1,21 @@
 #pragma once
 // Lidar odometry and mapping, one scan at a time (paper §4.1–4.6):
-//   predict (constant velocity) -> deskew with the predicted motion ->
+//   predict (IMU rotation + constant velocity, or constant velocity alone)
+//   -> deskew every firing with the predicted motion ->
 //   ground lattice (in the gravity-aligned map frame) -> hierarchical
 //   k-means of non-ground points -> cluster-aware features ->
-//   scan-to-map LM registration against the CForestMap submaps near the
-//   predicted pose -> insert the features into the map -> update velocity.
+//   scan-to-map LM registration against the local map (incremental voxel
+//   planes + edge points, IMU gravity prior on roll/pitch) -> insert the
+//   scan into the local map and the CForestMap -> update velocity.
 #include <forest_slam/cluster/hierarchical_kmeans.h>
 #include <forest_slam/core/scan_points.h>
 #include <forest_slam/core/trajectory.h>
 #include <forest_slam/features/feature_extractor.h>
 #include <forest_slam/ground/ground_lattice.h>
+#include <forest_slam/imu/imu_buffer.h>
 #include <forest_slam/map/forest_map.h>
 #include <forest_slam/odometry/feature_registration.h>
+#include <forest_slam/odometry/local_map.h>
 
 #include <optional>
 
@@ -19,12 +23,12 @@ namespace forest_slam::odometry
 {
 struct OdometryOptions : public mrpt::config::CLoadableOptions
 {
-	double local_map_radius_m = 40.0;  ///< submaps used for scan-to-map
-	/** The local map's search structure is rebuilt when the sensor moved
-	 * this far from where it was built, or after this many scans: building
-	 * k-d trees over the local map is the costliest step of a scan. */
-	double target_rebuild_distance_m = 0.5;
-	int target_rebuild_scans = 5;
+	/** The local map drops voxels beyond local_map.radius_m every this many
+	 * scans. */
+	int prune_every_scans = 20;
+	/** Use the IMU (when the rawlog has one) for the rotation prediction,
+	 * the deskew and the gravity prior. */
+	bool use_imu = true;
 	/** Fewer matched features than this: the registration is not trusted
 	 * and the motion model carries the pose (degenerate place). */
 	int min_matches = 50;
@@ -33,33 +37,36 @@ struct OdometryOptions : public mrpt::config::CLoadableOptions
 	double degeneracy_ratio = 1e-3;
 
 	void loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
-							const std::string& section) override;
+	                        const std::string& section) override;
 	void saveToConfigFile(mrpt::config::CConfigFileBase& c,
-						  const std::string& section) const override;
+	                      const std::string& section) const override;
 };
 
 struct OdometryConfig
 {
-	OdometryOptions odometry;		 ///< [odometry]
-	RegistrationOptions registration;  ///< [registration]
-	ground::GroundOptions ground;	 ///< [ground]
-	cluster::ClusterOptions cluster;  ///< [cluster]
-	features::FeatureOptions features;	///< [features]
+	OdometryOptions odometry;           ///< [odometry]
+	RegistrationOptions registration;   ///< [registration]
+	LocalMapOptions local_map;          ///< [local_map]
+	imu::AttitudeOptions imu;           ///< [imu]
+	ground::GroundOptions ground;       ///< [ground]
+	cluster::ClusterOptions cluster;    ///< [cluster]
+	features::FeatureOptions features;  ///< [features]
 };
 
 struct ScanTiming
 {
 	double deskew_ms = 0, ground_ms = 0, cluster_ms = 0, features_ms = 0,
-		   register_ms = 0, insert_ms = 0;
+	       register_ms = 0, insert_ms = 0;
 };
 
 struct OdometryStep
 {
-	core::StampedPose pose;	 ///< lidar pose at the scan's first firing
+	core::StampedPose pose;  ///< lidar pose at the scan's first firing
 	size_t edges = 0, planar = 0;
 	RegistrationResult registration;
 	bool registered = false;  ///< false: first scan or motion model used
 	bool degenerate = false;
+	bool imu_used = false;  ///< IMU rotation for prediction and deskew
 	ScanTiming timing;
 };
 
@@ -72,6 +79,14 @@ class LidarOdometry
 	 * from the IMU. Must be called before the first processScan. */
 	void setInitialPose(const Eigen::Isometry3d& T) { initial_pose_ = T; }
 
+	/** IMU samples (body frame) and the lidar's mount on the body: enables
+	 * the IMU rotation prediction, deskew and gravity prior. */
+	void setImu(const imu::ImuBuffer* imu, const Eigen::Matrix3d& R_body_lidar)
+	{
+		imu_ = imu;
+		R_body_lidar_ = R_body_lidar;
+	}
+
 	OdometryStep processScan(const core::ScanPoints& scan);
 
 	const ground::GroundLattice& groundLattice() const { return lattice_; }
@@ -83,23 +98,38 @@ class LidarOdometry
 	{
 		std::vector<features::FeatureInputPoint> points;
 		features::Features feats;
-		std::vector<Eigen::Vector3f> edges, planar;	 ///< selected features
+		std::vector<Eigen::Vector3f> edges, planar;  ///< selected features
 	};
-	Prepared prepare(const core::ScanPoints& scan, const Eigen::Isometry3d& motion,
-					 const Eigen::Isometry3d& predicted, ScanTiming& timing);
+	/** Motion of the sensor during a sweep: pose at time s after the first
+	 * firing, relative to the first firing. */
+	struct SweepMotion
+	{
+		Eigen::Isometry3d end =
+		    Eigen::Isometry3d::Identity();  ///< constant velocity
+		bool imu = false;
+		double t0_s = 0;
+		Eigen::Isometry3d at(const imu::ImuBuffer* imu,
+		                     const Eigen::Matrix3d& R_bl, double sweep_s,
+		                     double s) const;
+	};
+	Prepared prepare(const core::ScanPoints& scan, const SweepMotion& motion,
+	                 const Eigen::Isometry3d& predicted, ScanTiming& timing);
 	void insert(const Prepared& s, const Eigen::Isometry3d& pose);
-	RegistrationResult registerToMap(const Prepared& s, const Eigen::Isometry3d& predicted);
+	/** Lidar rotation from t0 to t1 from the IMU (lidar frame). */
+	Eigen::Matrix3d imuRotation(double t0_s, double t1_s) const;
 
 	OdometryConfig cfg_;
-	FeatureTarget target_;
-	Eigen::Vector3d target_centre_ = Eigen::Vector3d::Zero();
-	int scans_since_target_ = -1;  ///< -1: no target yet
+	LocalMap local_map_;
+	const imu::ImuBuffer* imu_ = nullptr;
+	Eigen::Matrix3d R_body_lidar_ = Eigen::Matrix3d::Identity();
 	std::optional<core::ScanPoints> first_scan_;  ///< until the motion is known
+	bool first_scan_imu_ = false;  ///< the first scan was deskewed with the IMU
 	map::CForestMap& map_;
 	ground::GroundLattice lattice_;
 	Eigen::Isometry3d initial_pose_ = Eigen::Isometry3d::Identity();
 	Eigen::Isometry3d last_pose_ = Eigen::Isometry3d::Identity();
-	Eigen::Isometry3d velocity_ = Eigen::Isometry3d::Identity();  ///< per scan period
+	Eigen::Isometry3d velocity_ =
+	    Eigen::Isometry3d::Identity();  ///< per scan period
 	double last_stamp_s_ = 0, last_period_s_ = 0.1;
 	size_t scans_ = 0;
 };

@@ -8,10 +8,11 @@
 #include <forest_slam/pipeline/mapping_config.h>
 #include <mrpt/obs/CObservation.h>
 
+#include <mrpt/poses/CPose3D.h>
 #include <cstdint>
+#include <deque>
 #include <memory>
 #include <optional>
-#include <mrpt/poses/CPose3D.h>
 
 namespace mrpt::obs
 {
@@ -23,10 +24,10 @@ namespace forest_slam::pipeline
 struct RunStats
 {
 	uint64_t observations = 0;
-	uint64_t scans_in = 0;	///< lidar observations seen
+	uint64_t scans_in = 0;  ///< lidar observations seen
 	uint64_t scans_mapped = 0;
-	uint64_t scans_empty = 0;  ///< no valid return
-	uint64_t scans_out_of_order = 0;  ///< time not after the previous scan
+	uint64_t scans_empty = 0;          ///< no valid return
+	uint64_t scans_out_of_order = 0;   ///< time not after the previous scan
 	uint64_t scans_outside_poses = 0;  ///< no pose for their time
 	uint64_t scans_unreadable = 0;	///< unknown model / malformed image
 	uint64_t scans_degenerate = 0;	///< odometry: weak geometry
@@ -34,7 +35,9 @@ struct RunStats
 	/** Online, pipeline behind the sensors: motion-model pose only, not
 	 * registered nor inserted into the map (setLightScans). */
 	uint64_t scans_light = 0;
+	uint64_t scans_imu = 0;	 ///< odometry: IMU rotation used for prediction + deskew
 	uint64_t imu = 0, gnss = 0, other = 0;
+	uint64_t imu_rejected = 0;  ///< non-finite or not after the previous sample
 	/** Odometry per-stage milliseconds, one entry per scan. */
 	std::vector<odometry::ScanTiming> stage_ms;
 	uint64_t points_in = 0;
@@ -50,7 +53,7 @@ class MappingPipeline
    public:
 	/** `poses` is required when the config asks pose_source=trajectory. */
 	MappingPipeline(const MappingConfig& cfg,
-					std::optional<core::Trajectory> poses = std::nullopt);
+	                std::optional<core::Trajectory> poses = std::nullopt);
 
 	/** Dispatches by sensor label; never throws on bad sensor data (it is
 	 * counted and logged once), throws only on programming errors. */
@@ -69,6 +72,10 @@ class MappingPipeline
 	 * map (odometry pose source; the others are cheap and unaffected). */
 	void setLightScans(bool on) { light_scans_ = on; }
 
+	/** End of input: processes the scans still waiting for IMU samples.
+	 * Call once after the last observation, before reading the results. */
+	void finish();
+
    private:
 	MappingConfig cfg_;
 	std::optional<core::Trajectory> poses_;
@@ -86,13 +93,30 @@ class MappingPipeline
 	bool light_scans_ = false;
 	/** light_scan.cpp; false if it does not apply (then processed fully). */
 	bool processLightScan(const mrpt::obs::CObservation& scan);
+	// Odometry: IMU samples (body frame) and the scans waiting until the IMU
+	// covers their sweep (a recording stores a scan at its first firing,
+	// before the IMU samples taken during the sweep).
+	imu::ImuBuffer imu_buffer_;
+	struct PendingScan
+	{
+		core::ScanPoints pts;
+		mrpt::poses::CPose3D sensor_pose;
+	};
+	std::deque<PendingScan> pending_;
+
+	void addImuSample(const mrpt::obs::CObservation& imu);
+	/** Runs the odometry on the pending scans whose sweep the IMU covers
+	 * (all of them with `all`, or when too many wait: the IMU lags). */
+	void drainPending(bool all);
+	void runOdometry(PendingScan& s);
 
 	void accumulateGravity(const mrpt::obs::CObservation& imu);
 	/** First lidar pose in the map frame: at the origin, levelled with the
 	 * IMU gravity seen before the first scan, heading along x. */
-	Eigen::Isometry3d staticLidarPose(const mrpt::poses::CPose3D& lidar_on_vehicle);
+	Eigen::Isometry3d staticLidarPose(
+	    const mrpt::poses::CPose3D& lidar_on_vehicle);
 	void mapWithOdometry(const mrpt::obs::CObservationRotatingScan& scan,
-						 core::ScanPoints& pts);
+	                     core::ScanPoints& pts);
 
 	void processScan(const mrpt::obs::CObservationRotatingScan& scan);
 	/** Lidar pose in the map frame at absolute time t (--poses files hold
@@ -104,7 +128,8 @@ class MappingPipeline
 	 * force (up, in the vehicle frame) with +z, then the heading is removed
 	 * so x lies along the lidar's first heading. */
 	static Eigen::Matrix3d levelledOrientation(
-		const Eigen::Vector3d& up_in_vehicle, const Eigen::Matrix3d& lidar_on_vehicle);
+	    const Eigen::Vector3d& up_in_vehicle,
+	    const Eigen::Matrix3d& lidar_on_vehicle);
 };
 
 }  // namespace forest_slam::pipeline

@@ -1,0 +1,70 @@
+#pragma once
+// IMU samples of the current stretch of time, expressed in the vehicle
+// (body) frame the sensors are mounted on, with the two things the odometry
+// asks of them: the rotation of the body between two instants (gyro
+// integration, bias removed) and the direction of gravity (attitude filter,
+// see attitude_filter.h). The caller rotates them into the lidar frame.
+#include <forest_slam/imu/attitude_filter.h>
+
+#include <Eigen/Geometry>
+#include <deque>
+#include <string>
+
+namespace forest_slam::imu
+{
+struct ImuSample
+{
+	double t_s = 0;
+	Eigen::Vector3d gyro = Eigen::Vector3d::Zero();  ///< rad/s, body frame
+	Eigen::Vector3d acc =
+	    Eigen::Vector3d::Zero();  ///< m/s^2 specific force, body frame
+};
+
+class ImuBuffer
+{
+   public:
+	explicit ImuBuffer(const AttitudeOptions& o = {}) : filter_(o) {}
+
+	/** Adds a sample given in the body frame. Returns false (and keeps
+	 * nothing) for a non-finite sample or one not after the previous sample:
+	 * the caller counts and reports those. */
+	bool add(double t_s, const Eigen::Vector3d& gyro,
+	         const Eigen::Vector3d& acc);
+
+	bool empty() const { return samples_.empty(); }
+	double latestTime() const
+	{
+		return samples_.empty() ? -1e300 : samples_.back().s.t_s;
+	}
+	/** True when samples exist at or before t0 and at or after t1, with no
+	 * gap longer than max_gap_s in between. */
+	bool covers(double t0_s, double t1_s, double max_gap_s = 0.05) const;
+
+	/** Rotation of the body frame at t1 expressed in the frame at t0
+	 * (R_t0_t1), by integrating bias-corrected gyro rates. Requires covers().
+	 */
+	Eigen::Quaterniond rotationBetween(double t0_s, double t1_s) const;
+
+	/** Gravity-aligned attitude (world <- body) from the filter at the
+	 * latest sample at or before t (or, before the filter levelled itself,
+	 * its first levelled attitude carried back with the gyro); yaw is free
+	 * and meaningless. */
+	bool attitudeAt(double t_s, Eigen::Quaterniond& q) const;
+	const AttitudeFilter& filter() const { return filter_; }
+
+	/** Drops samples older than t (keeps one at or before t). */
+	void pruneBefore(double t_s);
+
+   private:
+	struct Entry
+	{
+		ImuSample s;
+		Eigen::Quaterniond attitude;  ///< after this sample
+		Eigen::Vector3d bias;         ///< gyro bias after this sample
+		bool levelled = false;        ///< the filter was initialised
+	};
+	std::deque<Entry> samples_;
+	AttitudeFilter filter_;
+};
+
+}  // namespace forest_slam::imu

@@ -1,0 +1,108 @@
+#include <forest_slam/imu/imu_buffer.h>
+
+#include <algorithm>
+#include <cmath>
+
+namespace forest_slam::imu
+{
+bool ImuBuffer::add(double t_s, const Eigen::Vector3d& gyro,
+                    const Eigen::Vector3d& acc)
+{
+	if (!std::isfinite(t_s) || !gyro.allFinite() || !acc.allFinite())
+		return false;
+	if (!samples_.empty() && !(t_s > samples_.back().s.t_s)) return false;
+	Entry e;
+	e.s.t_s = t_s;
+	e.s.gyro = gyro;
+	e.s.acc = acc;
+	// A gap (IMU stall) is not integrated through the filter: it restarts
+	// the integration step from this sample.
+	const double dt =
+	    samples_.empty() ? 0.0 : std::min(0.1, t_s - samples_.back().s.t_s);
+	filter_.update(e.s.gyro, e.s.acc, dt);
+	e.attitude = filter_.attitude();
+	e.bias = filter_.gyroBias();
+	e.levelled = filter_.initialised();
+	samples_.push_back(e);
+	return true;
+}
+
+bool ImuBuffer::covers(double t0, double t1, double max_gap_s) const
+{
+	if (samples_.empty() || samples_.front().s.t_s > t0 ||
+	    samples_.back().s.t_s < t1)
+		return false;
+	auto it =
+	    std::upper_bound(samples_.begin(), samples_.end(), t0,
+	                     [](double t, const Entry& e) { return t < e.s.t_s; });
+	if (it != samples_.begin()) --it;
+	for (; it != samples_.end() && it->s.t_s < t1; ++it)
+	{
+		const auto nx = std::next(it);
+		if (nx != samples_.end() && nx->s.t_s - it->s.t_s > max_gap_s)
+			return false;
+	}
+	return true;
+}
+
+Eigen::Quaterniond ImuBuffer::rotationBetween(double t0, double t1) const
+{
+	Eigen::Quaterniond q = Eigen::Quaterniond::Identity();
+	if (samples_.size() < 2 || !(t1 > t0)) return q;
+	auto it =
+	    std::upper_bound(samples_.begin(), samples_.end(), t0,
+	                     [](double t, const Entry& e) { return t < e.s.t_s; });
+	if (it != samples_.begin()) --it;
+	// The bias is the filter's latest estimate: it changes slowly.
+	const Eigen::Vector3d bias = samples_.back().bias;
+	for (; std::next(it) != samples_.end() && it->s.t_s < t1; ++it)
+	{
+		const auto& a = it->s;
+		const auto& b = std::next(it)->s;
+		const double lo = std::max(t0, a.t_s), hi = std::min(t1, b.t_s);
+		if (!(hi > lo)) continue;
+		const Eigen::Vector3d w = 0.5 * (a.gyro + b.gyro) - bias;
+		const Eigen::Vector3d dth = w * (hi - lo);
+		const double ang = dth.norm();
+		if (ang > 1e-12)
+			q = q * Eigen::Quaterniond(Eigen::AngleAxisd(ang, dth / ang));
+	}
+	return q.normalized();
+}
+
+bool ImuBuffer::attitudeAt(double t_s, Eigen::Quaterniond& q) const
+{
+	if (samples_.empty() || !filter_.initialised()) return false;
+	auto it =
+	    std::upper_bound(samples_.begin(), samples_.end(), t_s,
+	                     [](double t, const Entry& e) { return t < e.s.t_s; });
+	if (it == samples_.begin()) return false;
+	--it;
+	if (t_s - it->s.t_s > 0.1) return false;
+	if (!it->levelled)
+	{
+		// Before the filter levelled itself: its first levelled attitude,
+		// rotated back to t with the gyro.
+		auto lv = std::find_if(it, samples_.end(),
+		                       [](const Entry& e) { return e.levelled; });
+		q = (lv->attitude * rotationBetween(t_s, lv->s.t_s).conjugate())
+		        .normalized();
+		return true;
+	}
+	// Carry the attitude from the sample to t with its rate.
+	const Eigen::Vector3d dth = (it->s.gyro - it->bias) * (t_s - it->s.t_s);
+	const double ang = dth.norm();
+	q = it->attitude;
+	if (ang > 1e-12)
+		q = q * Eigen::Quaterniond(Eigen::AngleAxisd(ang, dth / ang));
+	q.normalize();
+	return true;
+}
+
+void ImuBuffer::pruneBefore(double t_s)
+{
+	while (samples_.size() > 1 && samples_[1].s.t_s <= t_s)
+		samples_.pop_front();
+}
+
+}  // namespace forest_slam::imu

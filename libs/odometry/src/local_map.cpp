@@ -1,0 +1,271 @@
+#include <forest_slam/core/config.h>
+#include <forest_slam/odometry/local_map.h>
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+
+namespace forest_slam::odometry
+{
+void LocalMapOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
+                                         const std::string& s)
+{
+	FS_LOAD(c, s, cell_m);
+	FS_LOAD(c, s, planar_spacing_m);
+	FS_LOAD(c, s, edge_spacing_m);
+	FS_LOAD(c, s, max_points_per_cell);
+	FS_LOAD(c, s, min_plane_spread_m);
+	FS_LOAD(c, s, coarse_voxel_m);
+	FS_LOAD(c, s, max_points_per_voxel);
+	FS_LOAD(c, s, min_points_per_plane);
+	FS_LOAD(c, s, radius_m);
+	const std::string where = core::configOrigin(c) + ": [" + s + "] ";
+	if (!(cell_m > 0) || !(radius_m > 0) || !(planar_spacing_m >= 0) ||
+	    !(edge_spacing_m >= 0) || !(coarse_voxel_m >= 0) ||
+	    !(min_plane_spread_m >= 0))
+		throw core::ConfigError(where +
+		                        "cell_m and radius_m must be > 0; spacings, "
+		                        "coarse_voxel_m and min_plane_spread_m >= 0");
+	if (max_points_per_cell < 2 || max_points_per_voxel < 3 ||
+	    min_points_per_plane < 3)
+		throw core::ConfigError(
+		    where +
+		    "max_points_per_cell must be >= 2, "
+		    "max_points_per_voxel and min_points_per_plane >= 3");
+}
+
+void LocalMapOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
+                                       const std::string& s) const
+{
+	c.write(s, "cell_m", cell_m);
+	c.write(s, "planar_spacing_m", planar_spacing_m);
+	c.write(s, "edge_spacing_m", edge_spacing_m);
+	c.write(s, "max_points_per_cell", max_points_per_cell);
+	c.write(s, "min_plane_spread_m", min_plane_spread_m);
+	c.write(s, "coarse_voxel_m", coarse_voxel_m);
+	c.write(s, "max_points_per_voxel", max_points_per_voxel);
+	c.write(s, "min_points_per_plane", min_points_per_plane);
+	c.write(s, "radius_m", radius_m);
+}
+
+namespace
+{
+/** Plane or line of a neighbourhood: mean and eigen-decomposition. */
+struct Shape
+{
+	Eigen::Vector3d mean;
+	Eigen::Vector3d ev;  // ascending
+	Eigen::Matrix3d vecs;
+};
+Shape shapeOf(const std::vector<std::pair<float, Eigen::Vector3f>>& pts)
+{
+	Shape s;
+	s.mean.setZero();
+	for (const auto& pr : pts) s.mean += pr.second.cast<double>();
+	s.mean /= pts.size();
+	Eigen::Matrix3d C = Eigen::Matrix3d::Zero();
+	for (const auto& pr : pts)
+	{
+		const Eigen::Vector3d d = pr.second.cast<double>() - s.mean;
+		C += d * d.transpose();
+	}
+	Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
+	es.computeDirect(C / pts.size());
+	s.ev = es.eigenvalues();
+	s.vecs = es.eigenvectors();
+	return s;
+}
+}  // namespace
+
+void LocalMap::addPoint(PointGrid& g, float min_d2, const Eigen::Vector3f& p)
+{
+	const double s = o_.cell_m;
+	auto& c = g[key(static_cast<int64_t>(std::floor(p.x() / s)),
+	                static_cast<int64_t>(std::floor(p.y() / s)),
+	                static_cast<int64_t>(std::floor(p.z() / s)))];
+	if (static_cast<int>(c.pts.size()) >= o_.max_points_per_cell) return;
+	for (const auto& q : c.pts)
+		if ((q - p).squaredNorm() < min_d2) return;
+	c.pts.push_back(p);
+}
+
+void LocalMap::insert(const std::vector<Eigen::Vector3f>& edges,
+                      const std::vector<Eigen::Vector3f>& planar)
+{
+	const float pd2 =
+	    static_cast<float>(o_.planar_spacing_m * o_.planar_spacing_m);
+	const float ed2 = static_cast<float>(o_.edge_spacing_m * o_.edge_spacing_m);
+	const double sc = o_.coarse_voxel_m;
+	for (const auto& p : planar)
+	{
+		if (!p.allFinite()) continue;
+		addPoint(planar_, pd2, p);
+		if (sc <= 0) continue;
+		const int64_t i = static_cast<int64_t>(std::floor(p.x() / sc)),
+		              j = static_cast<int64_t>(std::floor(p.y() / sc)),
+		              k = static_cast<int64_t>(std::floor(p.z() / sc));
+		auto [it, fresh] = coarse_.try_emplace(key(i, j, k));
+		auto& v = it->second;
+		if (fresh) v.origin = Eigen::Vector3d(i * sc, j * sc, k * sc);
+		if (v.n >= o_.max_points_per_voxel) continue;
+		const Eigen::Vector3d q = p.cast<double>() - v.origin;
+		v.sum += q;
+		v.scatter.noalias() += q * q.transpose();
+		v.n++;
+	}
+	for (const auto& p : edges)
+		if (p.allFinite()) addPoint(edges_, ed2, p);
+}
+
+void LocalMap::prune(const Eigen::Vector3d& centre)
+{
+	const double r2 = o_.radius_m * o_.radius_m;
+	for (auto it = coarse_.begin(); it != coarse_.end();)
+		it = (it->second.origin - centre).head<2>().squaredNorm() > r2
+		         ? coarse_.erase(it)
+		         : std::next(it);
+	for (auto* g : {&planar_, &edges_})
+		for (auto it = g->begin(); it != g->end();)
+			it = it->second.pts.empty() ||
+			             (it->second.pts.front().cast<double>() - centre)
+			                     .head<2>()
+			                     .squaredNorm() > r2
+			         ? g->erase(it)
+			         : std::next(it);
+}
+
+bool LocalMap::fitted(const PlaneVoxel& v, const RegistrationOptions& o) const
+{
+	if (v.fitted_n == v.n) return v.planar;
+	v.fitted_n = v.n;
+	v.planar = false;
+	if (v.n < o_.min_points_per_plane) return false;
+	const Eigen::Vector3d m = v.sum / v.n;
+	const Eigen::Matrix3d C = v.scatter / v.n - m * m.transpose();
+	Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
+	es.computeDirect(C);
+	const auto ev = es.eigenvalues();
+	// A coarse voxel is a plane if its points spread over a tenth of it in
+	// both in-plane directions.
+	const double spread = 0.1 * o_.coarse_voxel_m;
+	if (!(ev[0] <= o.plane_flatness * ev[1]) || ev[1] < spread * spread)
+		return false;
+	v.normal = es.eigenvectors().col(0).normalized();
+	v.mean = m + v.origin;
+	v.planar = true;
+	return true;
+}
+
+bool LocalMap::coarsePlane(const Eigen::Vector3d& x, double gate,
+                           const RegistrationOptions& o, PlaneRow& out) const
+{
+	const double sp = o_.coarse_voxel_m;
+	if (sp <= 0) return false;
+	const int64_t i = static_cast<int64_t>(std::floor(x.x() / sp)),
+	              j = static_cast<int64_t>(std::floor(x.y() / sp)),
+	              k = static_cast<int64_t>(std::floor(x.z() / sp));
+	static const int nb[7][3] = {{0, 0, 0}, {0, 0, -1}, {0, 0, 1}, {-1, 0, 0},
+	                             {1, 0, 0}, {0, -1, 0}, {0, 1, 0}};
+	double best = gate;
+	bool found = false;
+	for (const auto& d : nb)
+	{
+		const auto it = coarse_.find(key(i + d[0], j + d[1], k + d[2]));
+		if (it == coarse_.end()) continue;
+		const auto& v = it->second;
+		if (!fitted(v, o)) continue;
+		const double e = std::abs(v.normal.dot(x - v.mean));
+		// The point must project into the plane's extent, not onto its far
+		// extension.
+		if ((x - v.mean).squaredNorm() - e * e > sp * sp) continue;
+		if (e < best)
+		{
+			best = e;
+			out.n = v.normal;
+			out.d = -v.normal.dot(v.mean);
+			found = true;
+		}
+	}
+	return found;
+}
+
+void LocalMap::knn(const PointGrid& g, const Eigen::Vector3f& x, int k,
+                   double extent,
+                   std::vector<std::pair<float, Eigen::Vector3f>>& best) const
+{
+	best.clear();
+	const double s = o_.cell_m;
+	const Eigen::Vector3d xd = x.cast<double>();
+	// Only the cells the sphere of radius `extent` touches: with cells at
+	// least twice the extent that is at most 8 (2 per axis).
+	int64_t lo[3], hi[3];
+	for (int a = 0; a < 3; a++)
+	{
+		lo[a] = static_cast<int64_t>(std::floor((xd[a] - extent) / s));
+		hi[a] = static_cast<int64_t>(std::floor((xd[a] + extent) / s));
+	}
+	float worst = static_cast<float>(extent * extent);
+	for (int64_t i = lo[0]; i <= hi[0]; i++)
+		for (int64_t j = lo[1]; j <= hi[1]; j++)
+			for (int64_t m = lo[2]; m <= hi[2]; m++)
+			{
+				const auto it = g.find(key(i, j, m));
+				if (it == g.end()) continue;
+				for (const auto& p : it->second.pts)
+				{
+					const float d2 = (p - x).squaredNorm();
+					if (d2 > worst) continue;
+					if (static_cast<int>(best.size()) < k)
+						best.emplace_back(d2, p);
+					else
+						best.back() = {d2, p};
+					for (size_t n = best.size() - 1;
+					     n > 0 && best[n].first < best[n - 1].first; n--)
+						std::swap(best[n], best[n - 1]);
+					if (static_cast<int>(best.size()) == k)
+						worst = best.back().first;
+				}
+			}
+}
+
+bool LocalMap::matchPlane(const Eigen::Vector3f& x, double gate,
+                          const RegistrationOptions& o, PlaneRow& out) const
+{
+	thread_local std::vector<std::pair<float, Eigen::Vector3f>> best;
+	knn(planar_, x, o.knn, o.max_neighbourhood_m, best);
+	if (static_cast<int>(best.size()) == o.knn &&
+	    best.front().first <= gate * gate)
+	{
+		const Shape s = shapeOf(best);
+		if (s.ev[0] <= o.plane_flatness * s.ev[1] &&
+		    s.ev[1] >= o_.min_plane_spread_m * o_.min_plane_spread_m)
+		{
+			// The normal from the k neighbours, the plane through the nearest
+			// one: on a stem the neighbours' mean lies inside the curved
+			// surface (by the sagitta, which side depends on the view) and
+			// would bias the pose sideways.
+			out.n = s.vecs.col(0).normalized();
+			out.d = -out.n.dot(best.front().second.cast<double>());
+			if (std::abs(out.n.dot(x.cast<double>()) + out.d) <= gate)
+				return true;
+		}
+	}
+	return coarsePlane(x.cast<double>(), gate, o, out);
+}
+
+bool LocalMap::matchLine(const Eigen::Vector3f& x, double gate,
+                         const RegistrationOptions& o, PlaneRow& a,
+                         PlaneRow& b) const
+{
+	thread_local std::vector<std::pair<float, Eigen::Vector3f>> best;
+	knn(edges_, x, o.edge_knn, o.max_neighbourhood_m, best);
+	if (static_cast<int>(best.size()) < o.edge_knn ||
+	    best.front().first > gate * gate)
+		return false;
+	const Shape s = shapeOf(best);
+	if (s.ev[2] < o.line_ratio * s.ev[1]) return false;
+	lineToPlanes(s.mean, s.vecs.col(2).normalized(), a, b);
+	return true;
+}
+
+}  // namespace forest_slam::odometry

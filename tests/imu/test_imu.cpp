@@ -1,0 +1,95 @@
+#include <forest_slam/imu/imu_buffer.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+using namespace forest_slam;
+
+namespace
+{
+/** A body tilted by `tilt` (roll about x), spinning about its own z at rate
+ * w, sampled at 200 Hz with a constant gyro bias and white noise. */
+struct SpinningImu
+{
+	double tilt = 0.2, w = 0.5;
+	Eigen::Vector3d bias{0.01, -0.02, 0.005};
+	std::mt19937 rng{3};
+	std::normal_distribution<double> n{0.0, 1.0};
+	void fill(imu::ImuBuffer& b, double t0, double t1, double gyro_sigma = 1e-3,
+	          double acc_sigma = 0.02)
+	{
+		for (double t = t0; t <= t1 + 1e-9; t += 0.005)
+		{
+			// Specific force at rest: +g along world z, seen in the body.
+			const Eigen::Matrix3d R_wb =
+			    Eigen::AngleAxisd(tilt, Eigen::Vector3d::UnitX()) *
+			    Eigen::AngleAxisd(w * t, Eigen::Vector3d::UnitZ())
+			        .toRotationMatrix();
+			const Eigen::Vector3d acc =
+			    R_wb.transpose() * Eigen::Vector3d(0, 0, 9.80665) +
+			    acc_sigma * Eigen::Vector3d(n(rng), n(rng), n(rng));
+			const Eigen::Vector3d gyro =
+			    Eigen::Vector3d(0, 0, w) + bias +
+			    gyro_sigma * Eigen::Vector3d(n(rng), n(rng), n(rng));
+			ASSERT_TRUE(b.add(t, gyro, acc));
+		}
+	}
+};
+}  // namespace
+
+TEST(Imu, AttitudeLevelsWithGravityAndLearnsTheGyroBias)
+{
+	imu::AttitudeOptions o;
+	o.kp = 1.0;
+	o.ki = 0.1;
+	imu::ImuBuffer b(o);
+	SpinningImu s;
+	s.fill(b, 0.0, 60.0);
+	Eigen::Quaterniond q;
+	ASSERT_TRUE(b.attitudeAt(60.0, q));
+	// "Up" in the body frame must match the truth within 0.3 deg.
+	const Eigen::Matrix3d R_wb =
+	    Eigen::AngleAxisd(s.tilt, Eigen::Vector3d::UnitX()) *
+	    Eigen::AngleAxisd(s.w * 60.0, Eigen::Vector3d::UnitZ())
+	        .toRotationMatrix();
+	const Eigen::Vector3d up_true = R_wb.transpose() * Eigen::Vector3d::UnitZ();
+	const Eigen::Vector3d up_est = q.conjugate() * Eigen::Vector3d::UnitZ();
+	EXPECT_LT(std::acos(std::min(1.0, up_true.dot(up_est))) * 180 / M_PI, 0.3);
+	// Roll and pitch bias components are observable from gravity.
+	EXPECT_NEAR(b.filter().gyroBias().x(), s.bias.x(), 3e-3);
+	EXPECT_NEAR(b.filter().gyroBias().y(), s.bias.y(), 3e-3);
+}
+
+TEST(Imu, RotationBetweenIntegratesTheGyro)
+{
+	imu::ImuBuffer b;
+	SpinningImu s;
+	s.bias.setZero();
+	s.fill(b, 0.0, 2.0, 0.0, 0.0);
+	ASSERT_TRUE(b.covers(0.5, 1.5));
+	EXPECT_FALSE(b.covers(0.5, 2.5));
+	const Eigen::AngleAxisd d(b.rotationBetween(0.5, 1.5));
+	EXPECT_NEAR(d.angle(), s.w * 1.0, 1e-6);
+	EXPECT_NEAR(std::abs(d.axis().z()), 1.0, 1e-9);
+	// Sub-sample boundaries are interpolated.
+	EXPECT_NEAR(Eigen::AngleAxisd(b.rotationBetween(0.5012, 0.5037)).angle(),
+	            s.w * 0.0025, 1e-6);
+}
+
+TEST(Imu, RejectsBadSamplesAndGaps)
+{
+	imu::ImuBuffer b;
+	const Eigen::Vector3d g(0, 0, 9.8), z = Eigen::Vector3d::Zero();
+	EXPECT_TRUE(b.add(1.0, z, g));
+	EXPECT_FALSE(b.add(0.9, z, g)) << "time going backwards";
+	EXPECT_FALSE(b.add(1.0, z, g)) << "duplicate time";
+	EXPECT_FALSE(b.add(1.1, Eigen::Vector3d(NAN, 0, 0), g));
+	EXPECT_TRUE(b.add(1.005, z, g));
+	EXPECT_TRUE(b.add(2.0, z, g));  // a 1 s IMU stall
+	EXPECT_TRUE(b.covers(1.0, 1.005));
+	EXPECT_FALSE(b.covers(1.0, 2.0))
+	    << "a gap longer than max_gap_s is not covered";
+	b.pruneBefore(1.9);
+	EXPECT_FALSE(b.covers(1.0, 1.005));
+}
