@@ -5,6 +5,7 @@
 #include <forest_slam/io/rawlog_reader.h>
 #include <forest_slam/io/tum.h>
 #include <forest_slam/pipeline/mapping_job.h>
+#include <forest_slam/trees/tree_csv.h>
 
 #include <mrpt/io/CFileGZInputStream.h>
 #include <mrpt/io/CFileGZOutputStream.h>
@@ -73,8 +74,23 @@ std::string jsonEscape(const std::string& s)
 	}
 	return o;
 }
-/** {"ground": {"median":..,"p95":..,"max":..}, ...} over the scans. */
-std::string stageTimesJson(const std::vector<odometry::ScanTiming>& t)
+/** {"median": .., "p95": .., "max": ..} of `v` (sorted in place). */
+std::string distributionJson(std::vector<double>& v)
+{
+	std::sort(v.begin(), v.end());
+	const auto at = [&](double q) {
+		return v.empty() ? 0.0 : v[std::min(v.size() - 1, static_cast<size_t>(q * v.size()))];
+	};
+	std::ostringstream os;
+	os << "{\"median\": " << at(0.5) << ", \"p95\": " << at(0.95)
+	   << ", \"max\": " << (v.empty() ? 0.0 : v.back()) << "}";
+	return os.str();
+}
+
+/** {"ground": {"median":..,"p95":..,"max":..}, ...} over the scans, with the
+ * tree layer ("trees": per scan) last. */
+std::string stageTimesJson(const std::vector<odometry::ScanTiming>& t,
+						   std::vector<double> tree_ms)
 {
 	using T = odometry::ScanTiming;
 	const std::pair<const char*, double T::*> stages[] = {
@@ -88,16 +104,10 @@ std::string stageTimesJson(const std::vector<odometry::ScanTiming>& t)
 	{
 		std::vector<double> v;
 		for (const auto& x : t) v.push_back(x.*field);
-		std::sort(v.begin(), v.end());
-		const auto at = [&](double q) {
-			return v.empty() ? 0.0 : v[std::min(v.size() - 1, static_cast<size_t>(q * v.size()))];
-		};
-		os << (first ? "" : ", ") << "\"" << name << "\": {\"median\": " << at(0.5)
-		   << ", \"p95\": " << at(0.95) << ", \"max\": " << (v.empty() ? 0.0 : v.back())
-		   << "}";
+		os << (first ? "" : ", ") << "\"" << name << "\": " << distributionJson(v);
 		first = false;
 	}
-	os << "}";
+	os << ", \"trees\": " << distributionJson(tree_ms) << "}";
 	return os.str();
 }
 }  // namespace
@@ -250,6 +260,7 @@ MappingResult runMapping(const MappingJob& job, const MappingConfig& cfg,
 	}
 	pipeline.finish();
 	source.finish(pipeline);
+	pipeline.finish();
 	result.stats = pipeline.stats();
 	result.wall_seconds = std::chrono::duration<double>(
 							  std::chrono::steady_clock::now() - t0)
@@ -280,7 +291,14 @@ std::vector<std::string> writeOutputs(
 	}
 	written.push_back(map_path);
 
+	const std::string trees_csv = dir + "/trees.csv";
+	trees::writeTreesCsv(trees_csv, p.forestMap().trees());
+	written.push_back(trees_csv);
+
 	const auto& s = r.stats;
+	double tree_total_ms = s.tree_finish_ms;
+	for (double v : s.tree_ms) tree_total_ms += v;
+	const auto* layer = p.treeLayer();
 	const std::string summary = dir + "/run_summary.json";
 	core::writeFileAtomically(summary, [&](std::ostream& os) {
 		const double rt = r.wall_seconds > 0 ? s.dataSeconds() / r.wall_seconds : 0;
@@ -306,10 +324,18 @@ std::vector<std::string> writeOutputs(
 		   << "  \"scans_per_second\": "
 		   << (r.wall_seconds > 0 ? s.scans_mapped / r.wall_seconds : 0) << ",\n"
 		   << "  \"real_time_factor\": " << rt << ",\n"
-		   << "  \"stage_ms\": " << stageTimesJson(s.stage_ms) << ",\n"
+		   << "  \"stage_ms\": " << stageTimesJson(s.stage_ms, s.tree_ms) << ",\n"
 		   << "  \"map_edge_voxels\": " << p.forestMap().edgePointCount() << ",\n"
 		   << "  \"map_planar_voxels\": " << p.forestMap().planarPointCount() << ",\n"
 		   << "  \"map_submaps\": " << p.forestMap().submaps().size() << ",\n"
+		   << "  \"trees\": " << p.forestMap().trees().size() << ",\n"
+		   << "  \"tree_layer\": {\"total_ms\": " << tree_total_ms
+		   << ", \"share_of_wall\": "
+		   << (r.wall_seconds > 0 ? tree_total_ms / (1000 * r.wall_seconds) : 0)
+		   << ", \"finish_ms\": " << s.tree_finish_ms << ", \"detections\": "
+		   << (layer ? layer->stats().detections : 0) << ", \"detect_ms\": "
+		   << (layer ? layer->stats().detect_ms : 0) << ", \"stem_voxels\": "
+		   << (layer ? layer->stats().stored_voxels : 0) << "},\n"
 		   << "  \"input_damaged\": " << (r.input_damaged ? "true" : "false") << ",\n"
 		   << "  \"damage\": \"" << jsonEscape(r.damage_message) << "\",\n"
 		   << "  \"interrupted\": " << (r.interrupted ? "true" : "false") << "\n"

@@ -30,6 +30,9 @@ MappingPipeline::MappingPipeline(const MappingConfig& cfg,
 			    "[pipeline] pose_source=trajectory needs a trajectory with at "
 			    "least 2 poses (forest-slam map --poses FILE.tum)");
 	}
+	if (cfg_.trees.layer_enabled)
+		tree_layer_ = std::make_unique<trees::TreeLayer>(
+			cfg_.trees, cfg_.forest_map.submap_size_m);
 }
 
 bool MappingPipeline::reachedScanLimit() const
@@ -282,6 +285,7 @@ void MappingPipeline::runOdometry(PendingScan& s)
 	    (!step.registered && odometry_->scansProcessed() > 1);
 	stats_.scans_imu += step.imu_used;
 	stats_.stage_ms.push_back(step.timing);
+	feedTreeLayerOdometry(std::move(pts));
 }
 
 bool MappingPipeline::lidarPoseAt(double t_s, Eigen::Isometry3d& out) const
@@ -400,6 +404,7 @@ void MappingPipeline::processScan(
 	}
 	map_.insertFeatures(edge_map, planar_map);
 	trajectory_.push_back({stamp, scan_pose});
+	feedTreeLayer(edge_map, planar_map, scan_pose.translation());
 	stats_.scans_mapped++;
 }
 

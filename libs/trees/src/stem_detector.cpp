@@ -80,8 +80,7 @@ std::vector<StemSection> findSliceSections(const Points2D& xy, int slice_index,
 {
 	std::vector<StemSection> out;
 	const auto leaf =
-	    hierarchicalKMeans(xy, o.kmeans_branching, o.kmeans_leaf_points,
-	                       o.seed + uint32_t(slice_index));
+	    sliceKMeansLeaves(xy, o.kmeans_branching, o.kmeans_leaf_points);
 	const auto clusters =
 	    mergeLeavesByNeighbourhood(xy, leaf, o.link_distance_m);
 	if (n_clusters) *n_clusters = clusters.size();

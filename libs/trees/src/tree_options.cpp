@@ -22,7 +22,10 @@ namespace forest_slam::trees
 	                                X(ransac_inlier_m) X(seed) X(arc_bin_deg) \
 	                                    X(good_arc_deg) X(good_rmse_m)        \
 	                                        X(top_search_radius_m)            \
-	                                            X(top_max_gap_m)
+	                                            X(top_max_gap_m)       \
+	X(layer_enabled) X(layer_voxel_m) X(layer_ground_cell_m) X(layer_min_hag_m) \
+	    X(layer_max_hag_m) X(layer_max_range_m) X(layer_complete_distance_m)  \
+	        X(layer_margin_m)
 
 void TreeOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
                                      const std::string& s)
@@ -46,6 +49,13 @@ void TreeOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 	if (sor_k < 1) bad("sor_k must be >= 1");
 	if (min_slices < 1) bad("min_slices must be >= 1");
 	if (dbh_band_half_m <= 0) bad("dbh_band_half_m must be > 0");
+	if (layer_voxel_m <= 0 || layer_ground_cell_m <= 0 ||
+	    layer_max_range_m <= 0 || layer_margin_m < 0 ||
+	    layer_complete_distance_m < 0)
+		bad("layer_voxel_m, layer_ground_cell_m, layer_max_range_m must be > "
+		    "0, layer_margin_m and layer_complete_distance_m >= 0");
+	if (layer_max_hag_m <= layer_min_hag_m)
+		bad("layer_max_hag_m must be > layer_min_hag_m");
 }
 
 void TreeOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,

@@ -6,6 +6,7 @@
 #include <forest_slam/core/trajectory.h>
 #include <forest_slam/map/forest_map.h>
 #include <forest_slam/pipeline/mapping_config.h>
+#include <forest_slam/trees/tree_layer.h>
 #include <mrpt/obs/CObservation.h>
 
 #include <mrpt/poses/CPose3D.h>
@@ -40,6 +41,10 @@ struct RunStats
 	uint64_t imu_rejected = 0;  ///< non-finite or not after the previous sample
 	/** Odometry per-stage milliseconds, one entry per scan. */
 	std::vector<odometry::ScanTiming> stage_ms;
+	/** Tree layer milliseconds, one entry per mapped scan (store + the
+	 * column detections that scan triggered), and the end-of-run pass. */
+	std::vector<double> tree_ms;
+	double tree_finish_ms = 0;
 	uint64_t points_in = 0;
 	double first_stamp_s = 0, last_stamp_s = 0;
 	double dataSeconds() const
@@ -65,6 +70,11 @@ class MappingPipeline
 	const map::CForestMap& forestMap() const { return map_; }
 	const RunStats& stats() const { return stats_; }
 	bool reachedScanLimit() const;
+	/** End of the run: the tree layer detects the columns not done yet.
+	 * Call once after the last observation (runMapping does). */
+	void finish();
+	/** nullptr when [trees] layer_enabled = false. */
+	const trees::TreeLayer* treeLayer() const { return tree_layer_.get(); }
 
 	/** Online mode when the pipeline falls behind the sensors: while on,
 	 * lidar scans get the pose a constant-velocity model extrapolates from
@@ -119,6 +129,17 @@ class MappingPipeline
 	                     core::ScanPoints& pts);
 
 	void processScan(const mrpt::obs::CObservationRotatingScan& scan);
+
+	// Tree layer hook (tree_layer_hook.cpp): every mapped scan's points in
+	// the map frame feed the layer, which updates map_'s trees.
+	std::unique_ptr<trees::TreeLayer> tree_layer_;
+	/** Odometry: a scan waits for the next pose to be deskewed between. */
+	std::optional<core::ScanPoints> tree_pending_;
+	void feedTreeLayer(const std::vector<Eigen::Vector3f>& a,
+					   const std::vector<Eigen::Vector3f>& b,
+					   const Eigen::Vector3d& sensor);
+	void feedTreeLayerOdometry(core::ScanPoints&& scan);
+	void flushPendingTreeScan();
 	/** Lidar pose in the map frame at absolute time t (--poses files hold
 	 * lidar poses, like our own trajectory.tum, so they can be fed back). */
 	bool lidarPoseAt(double t_s, Eigen::Isometry3d& out) const;

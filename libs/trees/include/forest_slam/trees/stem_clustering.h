@@ -1,7 +1,8 @@
 #pragma once
 // Clustering of one horizontal slice (paper §4.2): hierarchical k-means with
-// branching factor k splits the points until every leaf holds <= σ points,
-// then a neighbourhood criterion joins leaves whose points come closer than
+// branching factor k splits the points until every leaf holds <= σ points
+// (libs/cluster, the same implementation the odometry front-end uses), then a
+// neighbourhood criterion joins leaves whose points come closer than
 // link_distance_m, so one stem split by k-means is one object again.
 #include <forest_slam/trees/circle_fit.h>
 
@@ -10,10 +11,11 @@
 
 namespace forest_slam::trees
 {
-/** Leaf index of each point of `p` (0..n_leaves-1); deterministic (seeded
- * k-means++ initialisation). */
-std::vector<int> hierarchicalKMeans(const Points2D& p, int branching,
-                                    int leaf_points, uint32_t seed);
+/** Leaf index of each point of `p` (0..n_leaves-1): cluster::hierarchicalKMeans
+ * on the points centred on their mean (float precision on georeferenced
+ * clouds), without its small-cluster merge. Deterministic. */
+std::vector<int> sliceKMeansLeaves(const Points2D& p, int branching,
+                                   int leaf_points);
 
 /** Clusters (lists of point indices) after joining leaves linked by any pair
  * of points within link_m; largest first. */

@@ -63,6 +63,17 @@ struct TreeOptions : public mrpt::config::CLoadableOptions
 	double top_search_radius_m = 1.0;
 	double top_max_gap_m = 1.5;
 
+	// Tree layer of a SLAM run (TreeLayer): stem-band store and updates.
+	bool layer_enabled = true;         ///< build the layer during `map`
+	double layer_voxel_m = 0.02;       ///< stem-band voxel filter
+	double layer_ground_cell_m = 0.5;  ///< lowest-point cells (terrain)
+	double layer_min_hag_m = 0.25;     ///< band kept above the cell minimum
+	double layer_max_hag_m = 3.6;
+	double layer_max_range_m = 25;  ///< horizontal range of stored points
+	/** A column is detected when the sensor is this far from its square. */
+	double layer_complete_distance_m = 30;
+	double layer_margin_m = 2;  ///< points from neighbouring columns
+
 	void loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 	                        const std::string& section) override;
 	void saveToConfigFile(mrpt::config::CConfigFileBase& c,

@@ -1,0 +1,104 @@
+#pragma once
+// Incremental tree layer of a SLAM run (issue 7): deskewed scans in the map
+// frame feed a stem-band point store tied to the map's submap columns; when
+// the sensor has moved away from a column (or at the end of the run) the
+// stems of that column are detected on its accumulated points and the
+// CForestMap tree layer is updated, so trees are available during an online
+// run. See doc/trees.md "Tree layer of a SLAM run".
+//
+// Store per column (the map's submap_size_m squares in x, y):
+//  - the lowest point of every layer_ground_cell_m cell: the terrain model
+//    (buildDtm on these points) at detection time;
+//  - a voxel cloud (layer_voxel_m, exact centroids) of the points between
+//    layer_min_hag_m and layer_max_hag_m above the lowest point of their
+//    ground cell so far: the stem band, fine enough for the DBH fit, which
+//    the map's 0.2 m / 0.4 m feature voxels are not.
+// Tree tops come from the map's own voxel clouds above the stem band.
+#include <forest_slam/map/forest_map.h>
+#include <forest_slam/map/voxel_cloud.h>
+#include <forest_slam/trees/tree_options.h>
+
+#include <Eigen/Geometry>
+
+#include <cstdint>
+#include <unordered_map>
+#include <vector>
+
+namespace forest_slam::trees
+{
+/** A submap column: the map's submap key without z. */
+struct ColumnKey
+{
+	int32_t x = 0, y = 0;
+	bool operator==(const ColumnKey& o) const { return x == o.x && y == o.y; }
+};
+struct ColumnKeyHash
+{
+	size_t operator()(const ColumnKey& k) const
+	{
+		return (static_cast<size_t>(static_cast<uint32_t>(k.x)) << 32) ^
+		       static_cast<uint32_t>(k.y);
+	}
+};
+
+struct TreeLayerStats
+{
+	uint64_t scans = 0;
+	uint64_t detections = 0;      ///< column detections run
+	double store_ms = 0;          ///< total time adding scans
+	double detect_ms = 0;         ///< total time detecting
+	std::vector<double> detect_ms_each;  ///< per column detection
+	size_t stored_voxels = 0;     ///< stem-band voxels now
+};
+
+class TreeLayer
+{
+   public:
+	TreeLayer(const TreeOptions& o, double column_size_m);
+
+	/** Adds the points (map frame, gravity-aligned, deskewed) of one scan
+	 * taken from `sensor` (map frame). */
+	void addScan(const std::vector<Eigen::Vector3f>& pts,
+	             const Eigen::Vector3d& sensor);
+
+	/** Detects the stems of every column with new points whose square is
+	 * farther than layer_complete_distance_m from `sensor`, and writes the
+	 * tree layer into `map`. Returns the number of columns processed. */
+	size_t update(const Eigen::Vector3d& sensor, map::CForestMap& map);
+	/** End of the run: detects every column with new points. */
+	size_t finish(map::CForestMap& map);
+
+	/** Loop correction: moves the stored points and the trees of one
+	 * column by `T` (map frame) and rewrites the tree layer of `map`. */
+	void transformColumn(const ColumnKey& k, const Eigen::Isometry3d& T,
+	                     map::CForestMap& map);
+
+	ColumnKey columnOf(double x, double y) const;
+	/** Stem-band points of a column (voxel centroids), for diagnostics. */
+	std::vector<Eigen::Vector3f> stemPoints(const ColumnKey& k) const;
+	const TreeLayerStats& stats() const { return stats_; }
+
+   private:
+	struct Column
+	{
+		/** Lowest point per ground cell (key z = 0). */
+		std::unordered_map<map::VoxelKey, Eigen::Vector3f, map::VoxelKeyHash>
+		    lowest;
+		map::VoxelCloud stem;
+		std::vector<map::TreeRecord> trees;
+		bool dirty = false;
+	};
+
+	TreeOptions o_;
+	double column_m_;
+	std::unordered_map<ColumnKey, Column, ColumnKeyHash> cols_;
+	uint32_t next_id_ = 1;
+	TreeLayerStats stats_;
+	std::vector<map::VoxelKey> scan_cells_;  ///< scratch
+
+	Column& column(const ColumnKey& k);
+	void detectColumn(const ColumnKey& k, const map::CForestMap& map);
+	void publish(map::CForestMap& map) const;
+};
+
+}  // namespace forest_slam::trees

@@ -1,0 +1,286 @@
+#include <forest_slam/trees/stem_detector.h>
+#include <forest_slam/trees/terrain_model.h>
+#include <forest_slam/trees/tree_layer.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+namespace forest_slam::trees
+{
+namespace
+{
+double msSince(std::chrono::steady_clock::time_point t0)
+{
+	return std::chrono::duration<double, std::milli>(
+	           std::chrono::steady_clock::now() - t0)
+	    .count();
+}
+
+/** Horizontal distance from (x, y) to the square [x0, x0+s] × [y0, y0+s]. */
+double distanceToSquare(double x, double y, double x0, double y0, double s)
+{
+	const double dx = std::max({x0 - x, 0.0, x - (x0 + s)});
+	const double dy = std::max({y0 - y, 0.0, y - (y0 + s)});
+	return std::hypot(dx, dy);
+}
+}  // namespace
+
+TreeLayer::TreeLayer(const TreeOptions& o, double column_size_m)
+    : o_(o), column_m_(column_size_m)
+{
+}
+
+ColumnKey TreeLayer::columnOf(double x, double y) const
+{
+	return {int32_t(std::floor(x / column_m_)),
+	        int32_t(std::floor(y / column_m_))};
+}
+
+TreeLayer::Column& TreeLayer::column(const ColumnKey& k)
+{
+	auto it = cols_.find(k);
+	if (it == cols_.end())
+	{
+		Column c;
+		c.stem.setVoxelSize(float(o_.layer_voxel_m));
+		it = cols_.emplace(k, std::move(c)).first;
+	}
+	return it->second;
+}
+
+void TreeLayer::addScan(const std::vector<Eigen::Vector3f>& pts,
+                        const Eigen::Vector3d& sensor)
+{
+	const auto t0 = std::chrono::steady_clock::now();
+	stats_.scans++;
+	const float max_r2 = float(o_.layer_max_range_m * o_.layer_max_range_m);
+	const float inv_g = float(1.0 / o_.layer_ground_cell_m);
+	const Eigen::Vector2f s2 = sensor.head<2>().cast<float>();
+	// Pass 1: lowest point per ground cell (the scan's own ground counts
+	// before its points are tested against it).
+	std::vector<std::pair<Column*, const Eigen::Vector3f*>> where(pts.size(),
+	                                                              {nullptr, nullptr});
+	ColumnKey last_key{INT32_MIN, INT32_MIN};
+	Column* last_col = nullptr;
+	for (size_t i = 0; i < pts.size(); i++)
+	{
+		const auto& p = pts[i];
+		if (!p.allFinite() || (p.head<2>() - s2).squaredNorm() > max_r2)
+			continue;
+		const ColumnKey ck = columnOf(p.x(), p.y());
+		if (!last_col || !(ck == last_key))
+			last_col = &column(ck), last_key = ck;
+		const map::VoxelKey g{int32_t(std::floor(p.x() * inv_g)),
+		                      int32_t(std::floor(p.y() * inv_g)), 0};
+		auto [it, inserted] = last_col->lowest.try_emplace(g, p);
+		if (!inserted && p.z() < it->second.z()) it->second = p;
+		where[i] = {last_col, &it->second};
+	}
+	// Pass 2: the stem band above the lowest point of the cell so far.
+	for (size_t i = 0; i < pts.size(); i++)
+	{
+		auto [col, low] = where[i];
+		if (!col) continue;
+		const float h = pts[i].z() - low->z();
+		if (h < o_.layer_min_hag_m || h > o_.layer_max_hag_m) continue;
+		col->dirty = true;
+		const size_t before = col->stem.size();
+		col->stem.insert(pts[i]);
+		stats_.stored_voxels += col->stem.size() - before;
+	}
+	stats_.store_ms += msSince(t0);
+}
+
+size_t TreeLayer::update(const Eigen::Vector3d& sensor, map::CForestMap& map)
+{
+	std::vector<ColumnKey> due;
+	for (const auto& [k, c] : cols_)
+		if (c.dirty &&
+		    distanceToSquare(sensor.x(), sensor.y(), k.x * column_m_,
+		                     k.y * column_m_, column_m_) >
+		        o_.layer_complete_distance_m)
+			due.push_back(k);
+	for (const auto& k : due) detectColumn(k, map);
+	if (!due.empty()) publish(map);
+	return due.size();
+}
+
+size_t TreeLayer::finish(map::CForestMap& map)
+{
+	std::vector<ColumnKey> due;
+	for (const auto& [k, c] : cols_)
+		if (c.dirty) due.push_back(k);
+	// Deterministic order (ids are given in detection order).
+	std::sort(due.begin(), due.end(), [](const ColumnKey& a, const ColumnKey& b)
+	          { return a.x != b.x ? a.x < b.x : a.y < b.y; });
+	for (const auto& k : due) detectColumn(k, map);
+	publish(map);
+	return due.size();
+}
+
+void TreeLayer::detectColumn(const ColumnKey& k, const map::CForestMap& map)
+{
+	const auto t0 = std::chrono::steady_clock::now();
+	Column& col = cols_.at(k);
+	col.dirty = false;
+	const double x0 = k.x * column_m_, y0 = k.y * column_m_;
+	const double margin = o_.layer_margin_m;
+	// The terrain needs a wider margin than the stems: the DTM filter looks
+	// dtm_window_cells around every cell.
+	const double ground_margin =
+	    margin + (o_.dtm_window_cells + 1) * o_.dtm_cell_m;
+	auto inside = [&](double x, double y, double m)
+	{
+		return x >= x0 - m && x < x0 + column_m_ + m && y >= y0 - m &&
+		       y < y0 + column_m_ + m;
+	};
+	std::vector<Eigen::Vector3d> pts, ground;
+	for (int dx = -1; dx <= 1; dx++)
+		for (int dy = -1; dy <= 1; dy++)
+		{
+			const auto it = cols_.find({k.x + dx, k.y + dy});
+			if (it == cols_.end()) continue;
+			for (const auto& [key, p] : it->second.lowest)
+				if (inside(p.x(), p.y(), ground_margin))
+					ground.push_back(p.cast<double>());
+			for (const auto& [key, v] : it->second.stem.voxels())
+			{
+				const Eigen::Vector3f c = v.centroid();
+				if (inside(c.x(), c.y(), margin)) pts.push_back(c.cast<double>());
+			}
+		}
+	std::vector<map::TreeRecord> found;
+	if (!ground.empty() && !pts.empty())
+	{
+		const TerrainModel dtm = buildDtm(ground, o_);
+		// Tree tops: the map's own voxels above the stem band.
+		const double band_top = o_.slice_max_m + 0.5 * o_.slice_thickness_m;
+		const int sx = int(std::floor(x0 / map.options().submap_size_m + 0.5));
+		const int sy = int(std::floor(y0 / map.options().submap_size_m + 0.5));
+		std::vector<Eigen::Vector3f> above;
+		for (const auto& [key, sm] : map.submaps())
+		{
+			if (std::abs(key.x - sx) > 1 || std::abs(key.y - sy) > 1) continue;
+			sm.edge.appendCentroids(above);
+			sm.planar.appendCentroids(above);
+		}
+		for (const auto& c : above)
+			if (inside(c.x(), c.y(), margin))
+			{
+				const Eigen::Vector3d p = c.cast<double>();
+				if (dtm.heightAboveGround(p) > band_top) pts.push_back(p);
+			}
+		for (const auto& t : detectTrees(pts, dtm, o_))
+			if (t.record.x >= x0 && t.record.x < x0 + column_m_ &&
+			    t.record.y >= y0 && t.record.y < y0 + column_m_)
+				found.push_back(t.record);
+	}
+	// Keep the ids of trees seen before (online users refer to them).
+	std::vector<char> reused(col.trees.size(), 0);
+	for (auto& t : found)
+	{
+		t.id = 0;
+		for (size_t j = 0; j < col.trees.size(); j++)
+		{
+			const auto& old = col.trees[j];
+			if (!reused[j] &&
+			    std::hypot(old.x - t.x, old.y - t.y) <
+			        std::max(0.5 * std::max(old.dbh_m, t.dbh_m), 0.1))
+			{
+				t.id = old.id;
+				reused[j] = 1;
+				break;
+			}
+		}
+		if (t.id == 0) t.id = next_id_++;
+	}
+	col.trees = std::move(found);
+	stats_.detections++;
+	const double ms = msSince(t0);
+	stats_.detect_ms += ms;
+	stats_.detect_ms_each.push_back(ms);
+}
+
+void TreeLayer::publish(map::CForestMap& map) const
+{
+	// A stem on a column border can be found from both sides with its centre
+	// estimated on either side: keep the better-confirmed one.
+	std::vector<map::TreeRecord> all;
+	for (const auto& [k, c] : cols_)
+		all.insert(all.end(), c.trees.begin(), c.trees.end());
+	std::sort(all.begin(), all.end(),
+	          [](const map::TreeRecord& a, const map::TreeRecord& b)
+	          {
+		          return a.n_slices != b.n_slices ? a.n_slices > b.n_slices
+		                                          : a.id < b.id;
+	          });
+	std::vector<map::TreeRecord> kept;
+	for (const auto& t : all)
+	{
+		bool dup = false;
+		for (const auto& u : kept)
+			if (std::hypot(u.x - t.x, u.y - t.y) <
+			    0.5 * std::max(u.dbh_m, t.dbh_m) + 0.05)
+				dup = true;
+		if (!dup) kept.push_back(t);
+	}
+	std::sort(kept.begin(), kept.end(),
+	          [](const map::TreeRecord& a, const map::TreeRecord& b)
+	          { return a.id < b.id; });
+	map.setTrees(std::move(kept));
+}
+
+void TreeLayer::transformColumn(const ColumnKey& k, const Eigen::Isometry3d& T,
+                                map::CForestMap& map)
+{
+	const auto it = cols_.find(k);
+	if (it == cols_.end()) return;
+	Column& c = it->second;
+	const Eigen::Isometry3f Tf = T.cast<float>();
+	const float inv_g = float(1.0 / o_.layer_ground_cell_m);
+	decltype(c.lowest) lowest;
+	for (const auto& [key, p] : c.lowest)
+	{
+		const Eigen::Vector3f q = Tf * p;
+		const map::VoxelKey g{int32_t(std::floor(q.x() * inv_g)),
+		                      int32_t(std::floor(q.y() * inv_g)), 0};
+		auto [jt, inserted] = lowest.try_emplace(g, q);
+		if (!inserted && q.z() < jt->second.z()) jt->second = q;
+	}
+	c.lowest.swap(lowest);
+	// Voxel sums move exactly: sum' = R sum + n t.
+	std::unordered_map<map::VoxelKey, map::VoxelCloud::Accum, map::VoxelKeyHash>
+	    moved;
+	const float inv_v = 1.f / c.stem.voxelSize();
+	for (const auto& [key, a] : c.stem.voxels())
+	{
+		map::VoxelCloud::Accum b;
+		b.count = a.count;
+		b.sum = Tf.linear() * a.sum + float(a.count) * Tf.translation();
+		auto& m = moved[map::voxelKeyOf(b.centroid(), inv_v)];
+		m.sum += b.sum;
+		m.count += b.count;
+	}
+	stats_.stored_voxels -= c.stem.size();
+	c.stem.clear();
+	for (const auto& [key, a] : moved) c.stem.setVoxel(key, a);
+	stats_.stored_voxels += c.stem.size();
+	c.dirty = true;  // detected again when due
+	for (auto& t : c.trees)
+	{
+		const Eigen::Vector3d q = T * Eigen::Vector3d(t.x, t.y, t.z_ground);
+		t.x = q.x(), t.y = q.y(), t.z_ground = q.z();
+	}
+	publish(map);
+}
+
+std::vector<Eigen::Vector3f> TreeLayer::stemPoints(const ColumnKey& k) const
+{
+	std::vector<Eigen::Vector3f> out;
+	const auto it = cols_.find(k);
+	if (it != cols_.end()) it->second.stem.appendCentroids(out);
+	return out;
+}
+
+}  // namespace forest_slam::trees

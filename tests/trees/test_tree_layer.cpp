@@ -1,0 +1,123 @@
+// Incremental tree layer (TreeLayer): scans of a synthetic sloped forest
+// strip seen from a moving sensor; columns are detected once the sensor has
+// left them, stems on a column border are reported once, and a loop
+// correction moves a column's trees.
+#include <forest_slam/map/forest_map.h>
+#include <forest_slam/trees/tree_layer.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <set>
+
+using namespace forest_slam;
+using namespace forest_slam::trees;
+
+namespace
+{
+struct Stem
+{
+	double x, y, r;
+};
+double ground(double x, double y) { return 0.1 * x + 0.03 * y; }
+
+/** One scan from `s`: the stem sides facing the sensor (0–5 m above
+ * ground) and the ground around the sensor, 5 mm noise. */
+std::vector<Eigen::Vector3f> scan(const std::vector<Stem>& stems,
+                                  const Eigen::Vector3d& s, std::mt19937& rng)
+{
+	std::normal_distribution<double> g(0, 0.005);
+	std::vector<Eigen::Vector3f> pts;
+	for (const auto& t : stems)
+	{
+		const double d = std::hypot(t.x - s.x(), t.y - s.y());
+		if (d > 20 || d < 1) continue;
+		const double facing = std::atan2(s.y() - t.y, s.x() - t.x);
+		for (double a = -75; a <= 75; a += 4)
+		{
+			const double ang = facing + a * M_PI / 180;
+			for (double h = 0; h < 5; h += 0.03)
+			{
+				const double r = t.r + g(rng);
+				pts.emplace_back(t.x + r * std::cos(ang), t.y + r * std::sin(ang),
+				                 ground(t.x, t.y) + h);
+			}
+		}
+	}
+	for (double x = -18; x <= 18; x += 0.3)
+		for (double y = -18; y <= 18; y += 0.3)
+		{
+			const double px = s.x() + x, py = s.y() + y;
+			pts.emplace_back(px, py, ground(px, py) + g(rng));
+		}
+	return pts;
+}
+}  // namespace
+
+TEST(TreeLayer, ColumnsDetectedAsTheSensorLeavesThem)
+{
+	// Stems along the path; one right on the column border x = 20.
+	const std::vector<Stem> stems = {{4, 5, 0.15},  {9, -6, 0.2},
+	                                 {14, 4, 0.1},  {19.98, -4, 0.18},
+	                                 {27, 6, 0.25}, {33, -5, 0.12}};
+	TreeOptions o;
+	TreeLayer layer(o, 20.0);
+	map::CForestMap m;
+	std::mt19937 rng(7);
+	size_t trees_before_end = 0;
+	for (double x = -5; x <= 70; x += 1.0)
+	{
+		const Eigen::Vector3d s(x, 0, ground(x, 0) + 1.5);
+		layer.addScan(scan(stems, s, rng), s);
+		layer.update(s, m);
+		// Column [0, 20) is due once the sensor is > 30 m past x = 20.
+		if (x <= 49)
+		{
+			EXPECT_TRUE(m.trees().empty()) << "at x=" << x;
+		}
+		if (x == 51) trees_before_end = m.trees().size();
+	}
+	EXPECT_GE(trees_before_end, 3u) << "column 0 not published during the run";
+	layer.finish(m);
+	ASSERT_EQ(m.trees().size(), stems.size());
+	for (const auto& t : stems)
+	{
+		const map::TreeRecord* best = nullptr;
+		for (const auto& r : m.trees())
+			if (!best || std::hypot(r.x - t.x, r.y - t.y) <
+			                 std::hypot(best->x - t.x, best->y - t.y))
+				best = &r;
+		EXPECT_LT(std::hypot(best->x - t.x, best->y - t.y), 0.02) << t.x;
+		EXPECT_NEAR(best->dbh_m, 2 * t.r, 0.01) << t.x;
+		EXPECT_NEAR(best->z_ground, ground(t.x, t.y), 0.1) << t.x;
+		EXPECT_GE(best->n_slices, o.min_slices);
+	}
+	// Ids are unique and kept across updates.
+	std::set<uint32_t> ids;
+	for (const auto& r : m.trees()) ids.insert(r.id);
+	EXPECT_EQ(ids.size(), m.trees().size());
+
+	// A loop correction of column [20, 40) × [0, 20) moves its trees only.
+	const auto before = m.trees();
+	Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+	T.translation() = Eigen::Vector3d(0.5, -0.2, 0);
+	layer.transformColumn(layer.columnOf(27, 6), T, m);
+	ASSERT_EQ(m.trees().size(), before.size());
+	for (size_t i = 0; i < before.size(); i++)
+	{
+		const bool moved =
+		    layer.columnOf(before[i].x, before[i].y) == layer.columnOf(27, 6);
+		EXPECT_NEAR(m.trees()[i].x, before[i].x + (moved ? 0.5 : 0), 1e-9);
+		EXPECT_NEAR(m.trees()[i].y, before[i].y + (moved ? -0.2 : 0), 1e-9);
+	}
+	// Detected again from the moved points: same place.
+	layer.finish(m);
+	ASSERT_EQ(m.trees().size(), stems.size());
+	for (const auto& r : m.trees())
+	{
+		if (std::abs(r.y - 6) < 0.5)
+		{
+			EXPECT_NEAR(r.x, 27.5, 0.02);
+		}
+	}
+}
