@@ -19,7 +19,10 @@ struct Stem
 {
 	double x, y, r;
 };
-double ground(double x, double y) { return 0.1 * x + 0.03 * y; }
+double ground(double x, double y)
+{
+	return 0.1 * x + 0.03 * y;
+}
 
 /** One scan from `s`: the stem sides facing the sensor (0–5 m above
  * ground) and the ground around the sensor, 5 mm noise. */
@@ -39,8 +42,8 @@ std::vector<Eigen::Vector3f> scan(const std::vector<Stem>& stems,
 			for (double h = 0; h < 5; h += 0.03)
 			{
 				const double r = t.r + g(rng);
-				pts.emplace_back(t.x + r * std::cos(ang), t.y + r * std::sin(ang),
-				                 ground(t.x, t.y) + h);
+				pts.emplace_back(t.x + r * std::cos(ang),
+				                 t.y + r * std::sin(ang), ground(t.x, t.y) + h);
 			}
 		}
 	}

@@ -13,14 +13,14 @@ namespace
 double msSince(std::chrono::steady_clock::time_point t0)
 {
 	return std::chrono::duration<double, std::milli>(
-			   std::chrono::steady_clock::now() - t0)
-		.count();
+	           std::chrono::steady_clock::now() - t0)
+	    .count();
 }
 }  // namespace
 
 void MappingPipeline::feedTreeLayer(const std::vector<Eigen::Vector3f>& a,
-									const std::vector<Eigen::Vector3f>& b,
-									const Eigen::Vector3d& sensor)
+                                    const std::vector<Eigen::Vector3f>& b,
+                                    const Eigen::Vector3d& sensor)
 {
 	if (!tree_layer_) return;
 	const auto t0 = std::chrono::steady_clock::now();
@@ -62,8 +62,8 @@ void MappingPipeline::flushPendingTreeScan()
 		{
 			Eigen::Isometry3d Tp;
 			T = core::interpolatePose(trajectory_, s.stamp_s + p.t_s, Tp, 1e-6)
-					? Tp.cast<float>()
-					: trajectory_.back().pose.cast<float>();
+			        ? Tp.cast<float>()
+			        : trajectory_.back().pose.cast<float>();
 			last_col = p.column;
 			have = true;
 		}

@@ -221,14 +221,22 @@ CircleFitResult fitCircleRobust(const Points2D& p, const CircleFitOptions& o)
 		if (cost < best_cost) best_cost = cost, res.circle = c, res.ok = true;
 	}
 	if (!res.ok) return res;
-	const auto r = residuals(p, res.circle);
+	return evaluateCircle(p, res.circle, o);
+}
+
+CircleFitResult evaluateCircle(const Points2D& p, const Circle& c,
+                               const CircleFitOptions& o)
+{
+	CircleFitResult res;
+	res.ok = true;
+	res.circle = c;
+	const auto r = residuals(p, c);
 	res.scale_m = madScale(r, 1e-6);
 	double ss = 0;
 	for (double e : r)
 		if (std::abs(e) <= 3 * res.scale_m) ss += e * e, res.n_inliers++;
 	res.rmse_m = res.n_inliers ? std::sqrt(ss / res.n_inliers) : 0;
-	res.arc_coverage_deg =
-	    arcCoverageDeg(p, res.circle, 3 * res.scale_m, o.arc_bin_deg);
+	res.arc_coverage_deg = arcCoverageDeg(p, c, 3 * res.scale_m, o.arc_bin_deg);
 	return res;
 }
 

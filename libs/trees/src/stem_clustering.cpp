@@ -4,7 +4,9 @@
 #include <nanoflann.hpp>
 
 #include <algorithm>
+#include <cmath>
 #include <numeric>
+#include <tuple>
 
 namespace forest_slam::trees
 {
@@ -31,6 +33,28 @@ int findRoot(std::vector<int>& parent, int i)
 }
 }  // namespace
 
+Points2D thinToCells(const Points2D& p, double cell_m)
+{
+	std::vector<std::pair<std::pair<int64_t, int64_t>, size_t>> keyed;
+	keyed.reserve(p.size());
+	for (size_t i = 0; i < p.size(); i++)
+		keyed.push_back({{int64_t(std::floor(p[i].x() / cell_m)),
+		                  int64_t(std::floor(p[i].y() / cell_m))},
+		                 i});
+	std::sort(keyed.begin(), keyed.end());
+	Points2D out;
+	for (size_t j = 0; j < keyed.size();)
+	{
+		Eigen::Vector2d sum = Eigen::Vector2d::Zero();
+		size_t k = j;
+		for (; k < keyed.size() && keyed[k].first == keyed[j].first; k++)
+			sum += p[keyed[k].second];
+		out.push_back(sum / double(k - j));
+		j = k;
+	}
+	return out;
+}
+
 std::vector<int> sliceKMeansLeaves(const Points2D& p, int branching,
                                    int leaf_points)
 {
@@ -48,9 +72,10 @@ std::vector<int> sliceKMeansLeaves(const Points2D& p, int branching,
 	co.max_cluster_points = std::max(2, leaf_points);
 	co.min_cluster_points = 1;  // no small-cluster merge: the neighbourhood
 	                            // criterion below joins leaves instead
-	co.kmeans_iterations = 20;
+	co.kmeans_iterations = 10;
 	const auto labels = cluster::hierarchicalKMeans(pts, co);
-	for (size_t i = 0; i < p.size(); i++) leaf[i] = std::max(0, labels.cluster[i]);
+	for (size_t i = 0; i < p.size(); i++)
+		leaf[i] = std::max(0, labels.cluster[i]);
 	return leaf;
 }
 
@@ -62,20 +87,41 @@ std::vector<std::vector<size_t>> mergeLeavesByNeighbourhood(
 	const int n_leaves = *std::max_element(leaf.begin(), leaf.end()) + 1;
 	std::vector<int> parent(n_leaves);
 	std::iota(parent.begin(), parent.end(), 0);
-	Adaptor ad{p};
+	// Points closer than link_m / 8 in the same leaf link the same leaves:
+	// search from one representative of each such group only (slices of a
+	// voxelised map stack ~10 points on every spot of a stem).
+	const double cell = link_m / 8;
+	std::vector<std::tuple<int64_t, int64_t, int, size_t>> keyed;
+	keyed.reserve(p.size());
+	for (size_t i = 0; i < p.size(); i++)
+		keyed.emplace_back(int64_t(std::floor(p[i].x() / cell)),
+		                   int64_t(std::floor(p[i].y() / cell)), leaf[i], i);
+	std::sort(keyed.begin(), keyed.end());
+	Points2D rep;
+	std::vector<int> rep_leaf;
+	for (size_t j = 0; j < keyed.size(); j++)
+	{
+		const auto& [x, y, l, i] = keyed[j];
+		if (j > 0 && std::get<0>(keyed[j - 1]) == x &&
+		    std::get<1>(keyed[j - 1]) == y && std::get<2>(keyed[j - 1]) == l)
+			continue;
+		rep.push_back(p[i]);
+		rep_leaf.push_back(l);
+	}
+	Adaptor ad{rep};
 	Tree tree(2, ad, nanoflann::KDTreeSingleIndexAdaptorParams(10));
 	tree.buildIndex();
 	std::vector<std::pair<size_t, double>> hits;
 	nanoflann::SearchParams sp;
 	sp.sorted = false;
-	for (size_t i = 0; i < p.size(); i++)
+	for (size_t i = 0; i < rep.size(); i++)
 	{
-		const double q[2] = {p[i].x(), p[i].y()};
+		const double q[2] = {rep[i].x(), rep[i].y()};
 		tree.radiusSearch(q, link_m * link_m, hits, sp);
 		for (const auto& h : hits)
 		{
-			const int a = findRoot(parent, leaf[i]),
-			          b = findRoot(parent, leaf[h.first]);
+			const int a = findRoot(parent, rep_leaf[i]),
+			          b = findRoot(parent, rep_leaf[h.first]);
 			if (a != b) parent[a] = b;
 		}
 	}

@@ -148,6 +148,8 @@ std::vector<DetectedTree> detectTrees(const std::vector<Eigen::Vector3d>& pts,
 		}
 		for (int s = 0; s < n_slices; s++)
 		{
+			if (o.slice_cell_m > 0)
+				slice_xy[s] = thinToCells(slice_xy[s], o.slice_cell_m);
 			size_t nc = 0;
 			by_slice[s] = findSliceSections(
 			    slice_xy[s], s, o.slice_min_m + s * o.slice_step_m, o, &nc);
@@ -254,8 +256,20 @@ std::vector<DetectedTree> detectTrees(const std::vector<Eigen::Vector3d>& pts,
 
 	// 4. DBH, points, height per stem.
 	std::vector<DetectedTree> trees;
-	double z_max = -1e300;
-	for (const auto& p : pts) z_max = std::max(z_max, p.z());
+	// Points by 1 m cell, so each stem visits its neighbourhood only.
+	Eigen::Vector2d lo_xy(1e300, 1e300), hi_xy(-1e300, -1e300);
+	for (const auto& p : pts)
+		lo_xy = lo_xy.cwiseMin(p.head<2>()),
+		hi_xy = hi_xy.cwiseMax(p.head<2>());
+	const double cell = 1.0;
+	const int gx = pts.empty() ? 0 : int((hi_xy.x() - lo_xy.x()) / cell) + 1;
+	const int gy = pts.empty() ? 0 : int((hi_xy.y() - lo_xy.y()) / cell) + 1;
+	std::vector<std::vector<uint32_t>> grid(size_t(gx) * gy);
+	for (size_t i = 0; i < pts.size(); i++)
+		grid[int((pts[i].x() - lo_xy.x()) / cell) +
+		     gx * int((pts[i].y() - lo_xy.y()) / cell)]
+		    .push_back(uint32_t(i));
+	std::vector<uint32_t> near_idx;
 	for (const auto& c : unique)
 	{
 		const double r_est = c.medianRadius();
@@ -274,7 +288,23 @@ std::vector<DetectedTree> detectTrees(const std::vector<Eigen::Vector3d>& pts,
 		std::vector<double> column_h;
 		const double lo_h = o.slice_min_m - 0.5 * o.slice_thickness_m;
 		const double hi_h = o.slice_max_m + 0.5 * o.slice_thickness_m;
-		for (size_t i = 0; i < pts.size(); i++)
+		// Every point below can matter only within `reach` of the axis.
+		const double reach =
+		    std::max({o.top_search_radius_m, 1.6 * r_est + 0.1,
+		              std::max(c.radiusAt(lo_h), c.radiusAt(hi_h)) + 0.05});
+		const Eigen::Vector2d a_lo = c.at(lo_h), a_hi = c.at(hi_h);
+		const Eigen::Vector2d b_lo = a_lo.cwiseMin(a_hi).array() - reach,
+		                      b_hi = a_lo.cwiseMax(a_hi).array() + reach;
+		near_idx.clear();
+		for (int iy = std::max(0, int((b_lo.y() - lo_xy.y()) / cell));
+		     iy <= std::min(gy - 1, int((b_hi.y() - lo_xy.y()) / cell)); iy++)
+			for (int ix = std::max(0, int((b_lo.x() - lo_xy.x()) / cell));
+			     ix <= std::min(gx - 1, int((b_hi.x() - lo_xy.x()) / cell));
+			     ix++)
+				near_idx.insert(near_idx.end(), grid[ix + gx * iy].begin(),
+				                grid[ix + gx * iy].end());
+		std::sort(near_idx.begin(), near_idx.end());  // input order
+		for (const uint32_t i : near_idx)
 		{
 			const double h = hag[i];
 			if (h < lo_h) continue;
@@ -306,13 +336,30 @@ std::vector<DetectedTree> detectTrees(const std::vector<Eigen::Vector3d>& pts,
 		Points2D kept;
 		for (size_t i : statisticalOutlierFilter(band, o.sor_k, o.sor_omega))
 			kept.push_back(band[i]);
-		const auto f =
-		    kept.size() >= size_t(o.min_dbh_points)
-		        ? fitCircleRobust(
-		              kept, fitOptions(
-		                        o, 0.5 * r_est,
-		                        std::min(1.5 * r_est, 0.5 * o.max_dbh_m * 1.2)))
-		        : CircleFitResult{};
+		const auto fo = fitOptions(
+		    o, 0.5 * r_est, std::min(1.5 * r_est, 0.5 * o.max_dbh_m * 1.2));
+		auto f = kept.size() >= size_t(o.min_dbh_points)
+		             ? fitCircleRobust(kept, fo)
+		             : CircleFitResult{};
+		// The SOR circle seeds a final geometric fit on every band point
+		// within a symmetric residual gate: SOR's density criterion drops the
+		// outer half of the noise band more than the inner one (inside a
+		// circle the same noise is packed denser), which would shrink the
+		// DBH by about sigma^2/r.
+		if (f.ok)
+		{
+			const double gate = std::max(4 * f.scale_m, 2 * o.ransac_inlier_m);
+			Points2D near;
+			for (const auto& q : band)
+				if (std::abs((q - f.circle.centre).norm() -
+				             f.circle.radius_m) <= gate)
+					near.push_back(q);
+			Circle c = f.circle;
+			if (near.size() >= size_t(o.min_dbh_points) &&
+			    refineCircleGeometric(near, c) &&
+			    c.radius_m >= fo.min_radius_m && c.radius_m <= fo.max_radius_m)
+				f = evaluateCircle(near, c, fo);
+		}
 		if (f.ok)
 		{
 			const Eigen::Vector3d centre =

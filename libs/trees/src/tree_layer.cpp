@@ -26,6 +26,90 @@ double distanceToSquare(double x, double y, double x0, double y0, double s)
 }
 }  // namespace
 
+// --------------------------------------------------------- SortedVoxels
+namespace
+{
+constexpr size_t kMaxPending = 200000;  ///< points buffered per column
+constexpr int64_t kKeyOffset = int64_t(1) << 20;  ///< 21 bits per axis
+}  // namespace
+
+uint64_t TreeLayer::SortedVoxels::keyOf(const Eigen::Vector3f& p) const
+{
+	auto axis = [&](float v)
+	{
+		const int64_t i =
+		    int64_t(std::floor(double(v) / voxel_m_)) + kKeyOffset;
+		return uint64_t(std::clamp<int64_t>(i, 0, (int64_t(1) << 21) - 1));
+	};
+	return (axis(p.x()) << 42) | (axis(p.y()) << 21) | axis(p.z());
+}
+
+Eigen::Vector3f TreeLayer::SortedVoxels::centreOf(uint64_t key) const
+{
+	const uint64_t m = (uint64_t(1) << 21) - 1;
+	auto axis = [&](uint64_t i)
+	{ return float((double(int64_t(i) - kKeyOffset) + 0.5) * voxel_m_); };
+	return {axis((key >> 42) & m), axis((key >> 21) & m), axis(key & m)};
+}
+
+void TreeLayer::SortedVoxels::compact(size_t max_pending)
+{
+	if (pending_.size() <= max_pending || pending_.empty()) return;
+	std::vector<Voxel> add;
+	add.reserve(pending_.size());
+	for (const auto& p : pending_)
+	{
+		const uint64_t k = keyOf(p);
+		add.push_back({k, p - centreOf(k), 1});
+	}
+	pending_.clear();
+	pending_.shrink_to_fit();
+	mergeIn(add);
+}
+
+void TreeLayer::SortedVoxels::transform(const Eigen::Isometry3f& T)
+{
+	compact();
+	// Centroids move exactly; voxels meeting in one cell are merged.
+	std::vector<Voxel> moved;
+	moved.reserve(voxels_.size());
+	for (const auto& v : voxels_)
+	{
+		const Eigen::Vector3f c = T * centroid(v);
+		const uint64_t k = keyOf(c);
+		moved.push_back({k, (c - centreOf(k)) * float(v.count), v.count});
+	}
+	voxels_.clear();
+	mergeIn(moved);
+}
+
+void TreeLayer::SortedVoxels::mergeIn(std::vector<Voxel>& add)
+{
+	std::sort(add.begin(), add.end(),
+	          [](const Voxel& a, const Voxel& b) { return a.key < b.key; });
+	std::vector<Voxel> merged;
+	merged.reserve(voxels_.size() + add.size());
+	auto push = [&](const Voxel& v)
+	{
+		if (!merged.empty() && merged.back().key == v.key)
+		{
+			merged.back().sum += v.sum;
+			merged.back().count += v.count;
+		}
+		else
+			merged.push_back(v);
+	};
+	size_t i = 0, j = 0;
+	while (i < voxels_.size() || j < add.size())
+		if (j == add.size() ||
+		    (i < voxels_.size() && voxels_[i].key <= add[j].key))
+			push(voxels_[i++]);
+		else
+			push(add[j++]);
+	voxels_.swap(merged);
+}
+
+// ------------------------------------------------------------ TreeLayer
 TreeLayer::TreeLayer(const TreeOptions& o, double column_size_m)
     : o_(o), column_m_(column_size_m)
 {
@@ -43,7 +127,7 @@ TreeLayer::Column& TreeLayer::column(const ColumnKey& k)
 	if (it == cols_.end())
 	{
 		Column c;
-		c.stem.setVoxelSize(float(o_.layer_voxel_m));
+		c.stem = SortedVoxels(o_.layer_voxel_m);
 		it = cols_.emplace(k, std::move(c)).first;
 	}
 	return it->second;
@@ -59,8 +143,8 @@ void TreeLayer::addScan(const std::vector<Eigen::Vector3f>& pts,
 	const Eigen::Vector2f s2 = sensor.head<2>().cast<float>();
 	// Pass 1: lowest point per ground cell (the scan's own ground counts
 	// before its points are tested against it).
-	std::vector<std::pair<Column*, const Eigen::Vector3f*>> where(pts.size(),
-	                                                              {nullptr, nullptr});
+	std::vector<std::pair<Column*, const Eigen::Vector3f*>> where(
+	    pts.size(), {nullptr, nullptr});
 	ColumnKey last_key{INT32_MIN, INT32_MIN};
 	Column* last_col = nullptr;
 	for (size_t i = 0; i < pts.size(); i++)
@@ -85,9 +169,13 @@ void TreeLayer::addScan(const std::vector<Eigen::Vector3f>& pts,
 		const float h = pts[i].z() - low->z();
 		if (h < o_.layer_min_hag_m || h > o_.layer_max_hag_m) continue;
 		col->dirty = true;
-		const size_t before = col->stem.size();
-		col->stem.insert(pts[i]);
-		stats_.stored_voxels += col->stem.size() - before;
+		col->stem.add(pts[i]);
+	}
+	stats_.stored_voxels = 0;
+	for (auto& [k, c] : cols_)
+	{
+		c.stem.compact(kMaxPending);
+		stats_.stored_voxels += c.stem.size();
 	}
 	stats_.store_ms += msSince(t0);
 }
@@ -96,10 +184,9 @@ size_t TreeLayer::update(const Eigen::Vector3d& sensor, map::CForestMap& map)
 {
 	std::vector<ColumnKey> due;
 	for (const auto& [k, c] : cols_)
-		if (c.dirty &&
-		    distanceToSquare(sensor.x(), sensor.y(), k.x * column_m_,
-		                     k.y * column_m_, column_m_) >
-		        o_.layer_complete_distance_m)
+		if (c.dirty && distanceToSquare(sensor.x(), sensor.y(), k.x * column_m_,
+		                                k.y * column_m_, column_m_) >
+		                   o_.layer_complete_distance_m)
 			due.push_back(k);
 	for (const auto& k : due) detectColumn(k, map);
 	if (!due.empty()) publish(map);
@@ -112,7 +199,8 @@ size_t TreeLayer::finish(map::CForestMap& map)
 	for (const auto& [k, c] : cols_)
 		if (c.dirty) due.push_back(k);
 	// Deterministic order (ids are given in detection order).
-	std::sort(due.begin(), due.end(), [](const ColumnKey& a, const ColumnKey& b)
+	std::sort(due.begin(), due.end(),
+	          [](const ColumnKey& a, const ColumnKey& b)
 	          { return a.x != b.x ? a.x < b.x : a.y < b.y; });
 	for (const auto& k : due) detectColumn(k, map);
 	publish(map);
@@ -144,11 +232,13 @@ void TreeLayer::detectColumn(const ColumnKey& k, const map::CForestMap& map)
 			for (const auto& [key, p] : it->second.lowest)
 				if (inside(p.x(), p.y(), ground_margin))
 					ground.push_back(p.cast<double>());
-			for (const auto& [key, v] : it->second.stem.voxels())
-			{
-				const Eigen::Vector3f c = v.centroid();
-				if (inside(c.x(), c.y(), margin)) pts.push_back(c.cast<double>());
-			}
+			it->second.stem.compact();
+			it->second.stem.forEach(
+			    [&](const Eigen::Vector3f& c)
+			    {
+				    if (inside(c.x(), c.y(), margin))
+					    pts.push_back(c.cast<double>());
+			    });
 		}
 	std::vector<map::TreeRecord> found;
 	if (!ground.empty() && !pts.empty())
@@ -210,8 +300,7 @@ void TreeLayer::publish(map::CForestMap& map) const
 	for (const auto& [k, c] : cols_)
 		all.insert(all.end(), c.trees.begin(), c.trees.end());
 	std::sort(all.begin(), all.end(),
-	          [](const map::TreeRecord& a, const map::TreeRecord& b)
-	          {
+	          [](const map::TreeRecord& a, const map::TreeRecord& b) {
 		          return a.n_slices != b.n_slices ? a.n_slices > b.n_slices
 		                                          : a.id < b.id;
 	          });
@@ -249,22 +338,8 @@ void TreeLayer::transformColumn(const ColumnKey& k, const Eigen::Isometry3d& T,
 		if (!inserted && q.z() < jt->second.z()) jt->second = q;
 	}
 	c.lowest.swap(lowest);
-	// Voxel sums move exactly: sum' = R sum + n t.
-	std::unordered_map<map::VoxelKey, map::VoxelCloud::Accum, map::VoxelKeyHash>
-	    moved;
-	const float inv_v = 1.f / c.stem.voxelSize();
-	for (const auto& [key, a] : c.stem.voxels())
-	{
-		map::VoxelCloud::Accum b;
-		b.count = a.count;
-		b.sum = Tf.linear() * a.sum + float(a.count) * Tf.translation();
-		auto& m = moved[map::voxelKeyOf(b.centroid(), inv_v)];
-		m.sum += b.sum;
-		m.count += b.count;
-	}
 	stats_.stored_voxels -= c.stem.size();
-	c.stem.clear();
-	for (const auto& [key, a] : moved) c.stem.setVoxel(key, a);
+	c.stem.transform(Tf);
 	stats_.stored_voxels += c.stem.size();
 	c.dirty = true;  // detected again when due
 	for (auto& t : c.trees)
@@ -279,7 +354,10 @@ std::vector<Eigen::Vector3f> TreeLayer::stemPoints(const ColumnKey& k) const
 {
 	std::vector<Eigen::Vector3f> out;
 	const auto it = cols_.find(k);
-	if (it != cols_.end()) it->second.stem.appendCentroids(out);
+	if (it == cols_.end()) return out;
+	auto& stem = const_cast<SortedVoxels&>(it->second.stem);
+	stem.compact();
+	stem.forEach([&](const Eigen::Vector3f& c) { out.push_back(c); });
 	return out;
 }
 

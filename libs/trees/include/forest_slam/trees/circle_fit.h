@@ -55,6 +55,11 @@ bool refineCircleGeometric(const Points2D& p, Circle& c,
  * cost wins. */
 CircleFitResult fitCircleRobust(const Points2D& p, const CircleFitOptions& o);
 
+/** Scale, inliers, RMSE and arc coverage of circle `c` on `p`, as
+ * fitCircleRobust reports them. */
+CircleFitResult evaluateCircle(const Points2D& p, const Circle& c,
+                               const CircleFitOptions& o);
+
 /** Degrees of the circle seen by `p`: bins of `bin_deg` holding a point
  * within `max_residual_m` of the circle. */
 double arcCoverageDeg(const Points2D& p, const Circle& c, double max_residual_m,

@@ -15,7 +15,6 @@
 //    the map's 0.2 m / 0.4 m feature voxels are not.
 // Tree tops come from the map's own voxel clouds above the stem band.
 #include <forest_slam/map/forest_map.h>
-#include <forest_slam/map/voxel_cloud.h>
 #include <forest_slam/trees/tree_options.h>
 
 #include <Eigen/Geometry>
@@ -44,11 +43,11 @@ struct ColumnKeyHash
 struct TreeLayerStats
 {
 	uint64_t scans = 0;
-	uint64_t detections = 0;      ///< column detections run
-	double store_ms = 0;          ///< total time adding scans
-	double detect_ms = 0;         ///< total time detecting
+	uint64_t detections = 0;             ///< column detections run
+	double store_ms = 0;                 ///< total time adding scans
+	double detect_ms = 0;                ///< total time detecting
 	std::vector<double> detect_ms_each;  ///< per column detection
-	size_t stored_voxels = 0;     ///< stem-band voxels now
+	size_t stored_voxels = 0;            ///< stem-band voxels now
 };
 
 class TreeLayer
@@ -79,12 +78,52 @@ class TreeLayer
 	const TreeLayerStats& stats() const { return stats_; }
 
    private:
+	/** Stem-band voxels (exact centroids, like map::VoxelCloud) as a sorted
+	 * array: scans are appended to a buffer that is merged in by sorting
+	 * when it grows, so a scan costs a push_back per point instead of a
+	 * hash lookup into millions of voxels. */
+	class SortedVoxels
+	{
+	   public:
+		explicit SortedVoxels(double voxel_m = 0.02) : voxel_m_(voxel_m) {}
+		void add(const Eigen::Vector3f& p) { pending_.push_back(p); }
+		/** Merges the buffer if it holds more than `max_pending` points. */
+		void compact(size_t max_pending = 0);
+		size_t size() const { return voxels_.size() + pending_.size(); }
+		/** Calls f(centroid) for every voxel (compact() first). */
+		template <class F>
+		void forEach(F&& f) const
+		{
+			for (const auto& v : voxels_) f(centroid(v));
+		}
+		void transform(const Eigen::Isometry3f& T);
+
+	   private:
+		struct Voxel
+		{
+			uint64_t key;
+			Eigen::Vector3f sum;  ///< of offsets from the voxel centre
+			uint32_t count;
+		};
+		double voxel_m_;
+		std::vector<Voxel> voxels_;  ///< sorted by key
+		std::vector<Eigen::Vector3f> pending_;
+		uint64_t keyOf(const Eigen::Vector3f& p) const;
+		/** Sorts `add` and merges it into voxels_ (equal keys summed). */
+		void mergeIn(std::vector<Voxel>& add);
+		Eigen::Vector3f centreOf(uint64_t key) const;
+		Eigen::Vector3f centroid(const Voxel& v) const
+		{
+			return centreOf(v.key) + v.sum / float(v.count);
+		}
+	};
+
 	struct Column
 	{
 		/** Lowest point per ground cell (key z = 0). */
 		std::unordered_map<map::VoxelKey, Eigen::Vector3f, map::VoxelKeyHash>
 		    lowest;
-		map::VoxelCloud stem;
+		SortedVoxels stem;
 		std::vector<map::TreeRecord> trees;
 		bool dirty = false;
 	};
@@ -94,7 +133,6 @@ class TreeLayer
 	std::unordered_map<ColumnKey, Column, ColumnKeyHash> cols_;
 	uint32_t next_id_ = 1;
 	TreeLayerStats stats_;
-	std::vector<map::VoxelKey> scan_cells_;  ///< scratch
 
 	Column& column(const ColumnKey& k);
 	void detectColumn(const ColumnKey& k, const map::CForestMap& map);

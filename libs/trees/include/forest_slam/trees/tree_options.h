@@ -19,6 +19,7 @@ struct TreeOptions : public mrpt::config::CLoadableOptions
 	double slice_max_m = 3.0;
 	double slice_step_m = 0.25;
 	double slice_thickness_m = 0.2;
+	double slice_cell_m = 0;  ///< slices thinned to one point per cell (0: off)
 
 	// Clustering of a slice: hierarchical k-means + neighbourhood merge (§4.2).
 	int kmeans_branching = 4;  ///< k of each k-means level
