@@ -260,7 +260,6 @@ MappingResult runMapping(const MappingJob& job, const MappingConfig& cfg,
 	}
 	pipeline.finish();
 	source.finish(pipeline);
-	pipeline.finish();
 	result.stats = pipeline.stats();
 	result.wall_seconds = std::chrono::duration<double>(
 							  std::chrono::steady_clock::now() - t0)

@@ -182,6 +182,7 @@ void MappingPipeline::drainPending(bool all)
 void MappingPipeline::finish()
 {
 	drainPending(true);
+	finishTreeLayer();
 }
 
 Eigen::Matrix3d MappingPipeline::levelledOrientation(
@@ -285,7 +286,7 @@ void MappingPipeline::runOdometry(PendingScan& s)
 	    (!step.registered && odometry_->scansProcessed() > 1);
 	stats_.scans_imu += step.imu_used;
 	stats_.stage_ms.push_back(step.timing);
-	feedTreeLayerOdometry(std::move(pts));
+	feedTreeLayerOdometry(std::move(s.pts));  // popped by the caller
 }
 
 bool MappingPipeline::lidarPoseAt(double t_s, Eigen::Isometry3d& out) const

@@ -76,7 +76,7 @@ void MappingPipeline::flushPendingTreeScan()
 	stats_.tree_ms.push_back(msSince(t0));
 }
 
-void MappingPipeline::finish()
+void MappingPipeline::finishTreeLayer()
 {
 	if (!tree_layer_) return;
 	flushPendingTreeScan();

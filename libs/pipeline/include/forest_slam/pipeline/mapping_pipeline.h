@@ -70,9 +70,6 @@ class MappingPipeline
 	const map::CForestMap& forestMap() const { return map_; }
 	const RunStats& stats() const { return stats_; }
 	bool reachedScanLimit() const;
-	/** End of the run: the tree layer detects the columns not done yet.
-	 * Call once after the last observation (runMapping does). */
-	void finish();
 	/** nullptr when [trees] layer_enabled = false. */
 	const trees::TreeLayer* treeLayer() const { return tree_layer_.get(); }
 
@@ -82,8 +79,9 @@ class MappingPipeline
 	 * map (odometry pose source; the others are cheap and unaffected). */
 	void setLightScans(bool on) { light_scans_ = on; }
 
-	/** End of input: processes the scans still waiting for IMU samples.
-	 * Call once after the last observation, before reading the results. */
+	/** End of input: processes the scans still waiting for IMU samples,
+	 * then the tree layer detects the columns not done yet. Call once after
+	 * the last observation, before reading the results. */
 	void finish();
 
    private:
@@ -140,6 +138,7 @@ class MappingPipeline
 					   const Eigen::Vector3d& sensor);
 	void feedTreeLayerOdometry(core::ScanPoints&& scan);
 	void flushPendingTreeScan();
+	void finishTreeLayer();
 	/** Lidar pose in the map frame at absolute time t (--poses files hold
 	 * lidar poses, like our own trajectory.tum, so they can be fed back). */
 	bool lidarPoseAt(double t_s, Eigen::Isometry3d& out) const;
