@@ -56,18 +56,40 @@ Eigen::Matrix3d LidarOdometry::imuRotation(double t0_s, double t1_s) const
 	return R_body_lidar_.transpose() * Rb * R_body_lidar_;
 }
 
-Eigen::Isometry3d LidarOdometry::SweepMotion::at(const imu::ImuBuffer* imu_buf,
-                                                 const Eigen::Matrix3d& R_bl,
-                                                 double sweep_s, double s) const
+Eigen::Isometry3d SweepMotion::at(double s) const
 {
 	const double a = std::clamp(s / std::max(1e-6, sweep_s), 0.0, 1.0);
 	Eigen::Isometry3d T =
 	    core::interpolateIsometry(Eigen::Isometry3d::Identity(), end, a);
-	if (imu && imu_buf)
-		T.linear() =
-		    R_bl.transpose() *
-		    imu_buf->rotationBetween(t0_s, t0_s + s).toRotationMatrix() * R_bl;
+	if (imu)
+		T.linear() = R_body_lidar.transpose() *
+		             imu->rotationBetween(t0_s, t0_s + s).toRotationMatrix() *
+		             R_body_lidar;
 	return T;
+}
+
+std::vector<features::FeatureInputPoint> deskewScan(
+    const core::ScanPoints& scan, const SweepMotion& motion)
+{
+	// A point fired at time s moves with the sensor's motion from 0 to s.
+	std::unordered_map<uint32_t, Eigen::Isometry3f> column_T;
+	std::vector<features::FeatureInputPoint> fin;
+	fin.reserve(scan.points.size());
+	for (const auto& p : scan.points)
+	{
+		const Eigen::Vector3f raw(p.x, p.y, p.z);
+		if (!raw.allFinite()) continue;
+		auto it = column_T.find(p.column);
+		if (it == column_T.end())
+			it = column_T.emplace(p.column, motion.at(p.t_s).cast<float>())
+			         .first;
+		features::FeatureInputPoint f;
+		f.xyz = it->second * raw;
+		f.ring = p.ring;
+		f.column = p.column;
+		fin.push_back(f);
+	}
+	return fin;
 }
 
 LidarOdometry::Prepared LidarOdometry::prepare(
@@ -76,30 +98,10 @@ LidarOdometry::Prepared LidarOdometry::prepare(
 {
 	auto t = Clock::now();
 	Prepared out;
-	// Deskew into the frame of the first firing: a point fired at time s
-	// moves with the sensor's motion from 0 to s (IMU rotation when
-	// available, constant-velocity translation); one transform per column.
-	std::unordered_map<uint32_t, Eigen::Isometry3f> column_T;
+	// Deskew into the frame of the first firing (IMU rotation when
+	// available, constant-velocity translation).
+	out.points = deskewScan(scan, motion);
 	auto& fin = out.points;
-	fin.reserve(scan.points.size());
-	for (const auto& p : scan.points)
-	{
-		const Eigen::Vector3f raw(p.x, p.y, p.z);
-		if (!raw.allFinite()) continue;
-		auto it = column_T.find(p.column);
-		if (it == column_T.end())
-			it =
-			    column_T
-			        .emplace(p.column,
-			                 motion.at(imu_, R_body_lidar_, scan.sweep_s, p.t_s)
-			                     .cast<float>())
-			        .first;
-		features::FeatureInputPoint f;
-		f.xyz = it->second * raw;
-		f.ring = p.ring;
-		f.column = p.column;
-		fin.push_back(f);
-	}
 	timing.deskew_ms += msSince(t);
 
 	// Ground labels in the gravity-aligned map frame (predicted pose).
@@ -166,8 +168,10 @@ OdometryStep LidarOdometry::processScan(const core::ScanPoints& scan)
 	step.imu_used = use_imu;
 	Eigen::Isometry3d predicted = initial_pose_;
 	SweepMotion motion;
-	motion.imu = use_imu;
+	motion.imu = use_imu ? imu_ : nullptr;
+	motion.R_body_lidar = R_body_lidar_;
 	motion.t0_s = stamp;
+	motion.sweep_s = sweep;
 	if (scans_ > 0)
 	{
 		const double dt = stamp - last_stamp_s_;
@@ -221,8 +225,11 @@ OdometryStep LidarOdometry::processScan(const core::ScanPoints& scan)
 				const Eigen::Isometry3d v =
 				    last_pose_.inverse() * step.registration.T;
 				SweepMotion m0;
-				m0.imu = first_scan_imu_;
+				m0.imu = first_scan_imu_ ? imu_ : nullptr;
+				m0.R_body_lidar = R_body_lidar_;
 				m0.t0_s = first_scan_->stamp_s;
+				m0.sweep_s = first_scan_->sweep_s > 0 ? first_scan_->sweep_s
+				                                      : last_period_s_;
 				m0.end =
 				    core::interpolateIsometry(Eigen::Isometry3d::Identity(), v,
 				                              first_scan_->sweep_s / dt);

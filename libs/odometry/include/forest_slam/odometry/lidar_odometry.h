@@ -70,6 +70,26 @@ struct OdometryStep
 	ScanTiming timing;
 };
 
+/** Motion of the sensor during a sweep: pose at time s after the first
+ * firing, relative to the first firing. Translation (and, without IMU,
+ * rotation) from the constant-velocity model; with the IMU the rotation is
+ * the integrated gyro. */
+struct SweepMotion
+{
+	Eigen::Isometry3d end =
+	    Eigen::Isometry3d::Identity();    ///< constant velocity, whole sweep
+	const imu::ImuBuffer* imu = nullptr;  ///< rotation from the gyro when set
+	Eigen::Matrix3d R_body_lidar = Eigen::Matrix3d::Identity();
+	double t0_s = 0;  ///< absolute time of the first firing
+	double sweep_s = 0.1;
+	Eigen::Isometry3d at(double s) const;
+};
+
+/** Deskews a scan into the frame of its first firing (one transform per
+ * firing column); non-finite points are dropped. */
+std::vector<features::FeatureInputPoint> deskewScan(
+    const core::ScanPoints& scan, const SweepMotion& motion);
+
 class LidarOdometry
 {
    public:
@@ -99,18 +119,6 @@ class LidarOdometry
 		std::vector<features::FeatureInputPoint> points;
 		features::Features feats;
 		std::vector<Eigen::Vector3f> edges, planar;  ///< selected features
-	};
-	/** Motion of the sensor during a sweep: pose at time s after the first
-	 * firing, relative to the first firing. */
-	struct SweepMotion
-	{
-		Eigen::Isometry3d end =
-		    Eigen::Isometry3d::Identity();  ///< constant velocity
-		bool imu = false;
-		double t0_s = 0;
-		Eigen::Isometry3d at(const imu::ImuBuffer* imu,
-		                     const Eigen::Matrix3d& R_bl, double sweep_s,
-		                     double s) const;
 	};
 	Prepared prepare(const core::ScanPoints& scan, const SweepMotion& motion,
 	                 const Eigen::Isometry3d& predicted, ScanTiming& timing);
