@@ -1,6 +1,6 @@
 // forest-slam online fed by pcap-replay over loopback UDP (127.0.0.1 only,
-// free ports picked at run time), stopped with SIGINT; the same capture
-// through the driver's pcap reader; the INI checks.
+// free ports picked at run time), stopped with SIGINT or SIGTERM; the same
+// capture through the driver's pcap reader; the INI checks.
 #include <forest_slam/core/config.h>
 #include <forest_slam/ingest/pcap_file.h>
 #include <forest_slam/io/rawlog_reader.h>
@@ -198,9 +198,9 @@ TEST(PcapFile, ReadsTheVelodyneCaptureDatagrams)
 namespace
 {
 /** Replays the capture over loopback UDP into `forest-slam online` with the
- * given receiver, stops it with SIGINT, checks everything. */
+ * given receiver, stops it with `stop_signal`, checks everything. */
 void loopbackRun(const std::string& name, const std::string& receiver,
-                 double rate, bool with_open)
+                 double rate, bool with_open, int stop_signal)
 {
 	const auto dir = tempDir(name);
 	const auto [data_port, position_port] = freeUdpPorts();
@@ -228,9 +228,11 @@ void loopbackRun(const std::string& name, const std::string& receiver,
 	const auto n = std::to_string(expectedRevolutions(false).size());
 	EXPECT_TRUE(online.waitForOutput("status: scans " + n + " (", 120))
 	    << online.output();
-	online.signal(SIGINT);
+	online.signal(stop_signal);
 	ASSERT_EQ(online.wait(200), 0) << online.output();
-	EXPECT_NE(online.output().find("signal 2 received"), std::string::npos)
+	EXPECT_NE(online.output().find("signal " + std::to_string(stop_signal) +
+	                               " received"),
+	          std::string::npos)
 	    << online.output();
 	checkRun(ini, out, true, with_open);
 }
@@ -240,14 +242,14 @@ TEST(Online, LoopbackReplayThenSigintRecordsEveryPacket)
 {
 	// Our receiver: every packet, the open revolution included, even at
 	// 3x the recorded rate (2260 packets/s, twice what MRPT's loop reads).
-	loopbackRun("udp", "forest-slam", 3.0, true);
+	loopbackRun("udp", "forest-slam", 3.0, true, SIGINT);
 }
 
-TEST(Online, LoopbackReplayThroughMrptReceiveLoop)
+TEST(Online, LoopbackReplayThroughMrptReceiveLoopThenSigterm)
 {
 	// MRPT's own receive loop (about 1100 packets/s at most): half speed;
-	// it keeps the open revolution.
-	loopbackRun("udp_mrpt", "mrpt", 0.5, false);
+	// it keeps the open revolution. Stopped with SIGTERM this time.
+	loopbackRun("udp_mrpt", "mrpt", 0.5, false, SIGTERM);
 }
 
 TEST(Online, DriverPcapReplayEndsByItself)
