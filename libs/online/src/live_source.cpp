@@ -175,22 +175,38 @@ void LiveSource::willProcess(const mrpt::obs::CObservation&,
 void LiveSource::processed(const mrpt::obs::CObservation&,
                            const pipeline::MappingPipeline& p)
 {
-	if (current_.scan)
-	{
-		const double ms = std::chrono::duration<double, std::milli>(
-		                      SteadyClock::now() - current_.captured)
-		                      .count();
-		std::lock_guard<std::mutex> lk(mu_);
-		stats_.scans_processed++;
-		stats_.scans_light = p.stats().scans_light;
-		stats_.latency_ms.push_back(ms);
-	}
+	if (current_.scan) awaiting_pose_.push_back(current_.captured);
 	current_ = {};
+	collectLatencies(p);
 	maybePrintStatus();
 }
 
-void LiveSource::finish(const pipeline::MappingPipeline&)
+void LiveSource::collectLatencies(const pipeline::MappingPipeline& p)
 {
+	// A scan is posed (or skipped) when the pipeline is done with it, which
+	// may be a few observations later (the odometry waits for the IMU
+	// samples covering its sweep): latencies go to the scans in order.
+	const uint64_t done = p.stats().scans_in - p.scansPending();
+	const auto now = SteadyClock::now();
+	{
+		std::lock_guard<std::mutex> lk(mu_);
+		while (scans_done_ < done && !awaiting_pose_.empty())
+		{
+			stats_.latency_ms.push_back(
+			    std::chrono::duration<double, std::milli>(
+			        now - awaiting_pose_.front())
+			        .count());
+			awaiting_pose_.pop_front();
+			scans_done_++;
+		}
+		stats_.scans_processed = scans_done_;
+		stats_.scans_light = p.stats().scans_light;
+	}
+}
+
+void LiveSource::finish(const pipeline::MappingPipeline& p)
+{
+	collectLatencies(p);  // after p.finish(): the last waiting scans
 	stopGrabbing();
 	try
 	{

@@ -13,8 +13,10 @@ namespace forest_slam::pipeline
 {
 bool MappingPipeline::processLightScan(const mrpt::obs::CObservation& scan)
 {
+	// Scans waiting for IMU samples come first: a light pose now would be
+	// out of order in the trajectory. The full path queues this one too.
 	if (cfg_.pipeline.poseSource() != PoseSource::Odometry ||
-	    trajectory_.size() < 2)
+	    trajectory_.size() < 2 || !pending_.empty())
 		return false;
 	const double stamp = mrpt::Clock::toDouble(scan.timestamp);
 	const auto& a = trajectory_[trajectory_.size() - 2];

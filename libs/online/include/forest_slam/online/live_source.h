@@ -100,6 +100,10 @@ class LiveSource : public pipeline::ObservationSource
 	void stopGrabbing();
 	bool allExhausted() const;
 	void maybePrintStatus(bool force = false);
+	/** Latencies of the scans the pipeline has posed since the last call. */
+	void collectLatencies(const pipeline::MappingPipeline& p);
+	std::deque<SteadyClock::time_point> awaiting_pose_;
+	uint64_t scans_done_ = 0;
 };
 
 }  // namespace forest_slam::online

@@ -78,6 +78,8 @@ class MappingPipeline
 	 * the last two poses, and are neither registered nor inserted into the
 	 * map (odometry pose source; the others are cheap and unaffected). */
 	void setLightScans(bool on) { light_scans_ = on; }
+	/** Lidar scans taken in but not posed yet (waiting for IMU samples). */
+	size_t scansPending() const { return pending_.size(); }
 
 	/** End of input: processes the scans still waiting for IMU samples,
 	 * then the tree layer detects the columns not done yet. Call once after
