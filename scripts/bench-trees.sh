@@ -31,7 +31,7 @@ for s in $SCENARIOS; do
 done
 mkdir -p "$OUT"
 field() {  # field FILE KEY: first number after "KEY":
-  sed -n "s/.*\"$2\": *\([-0-9.eE+]*\).*/\1/p" "$1" | head -1
+  sed -n "s/.*\"$2\": *\([-0-9][-0-9.eE+]*\).*/\1/p" "$1" | head -1
 }
 printf '%-9s %-10s %6s %7s %7s %8s %8s %7s %8s %6s %8s %7s\n' scenario poses scans \
   recall precis "DBH_rmse" "DBH_bias" "MAPE%" "pos_rmse" trees "wall_s" "tree%"
