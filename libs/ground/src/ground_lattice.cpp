@@ -16,6 +16,7 @@ void GroundOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 	FS_LOAD(c, s, lowest_band_m);
 	FS_LOAD(c, s, max_slope_deg);
 	FS_LOAD(c, s, max_step_m);
+	FS_LOAD(c, s, max_rise_m);
 	FS_LOAD(c, s, support_radius_m);
 	FS_LOAD(c, s, seed_radius_m);
 	FS_LOAD(c, s, seed_below_sensor_m);
@@ -35,6 +36,8 @@ void GroundOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 		throw core::ConfigError(
 		    where +
 		    "ground_threshold_m, lowest_band_m must be > 0, max_step_m >= 0");
+	if (!(max_rise_m >= 0))
+		throw core::ConfigError(where + "max_rise_m must be >= 0");
 	if (!(max_slope_deg > 0 && max_slope_deg < 80))
 		throw core::ConfigError(where + "max_slope_deg must be in (0, 80)");
 	if (!(support_radius_m >= node_spacing_m) ||
@@ -67,6 +70,7 @@ void GroundOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
 	c.write(s, "lowest_band_m", lowest_band_m);
 	c.write(s, "max_slope_deg", max_slope_deg);
 	c.write(s, "max_step_m", max_step_m);
+	c.write(s, "max_rise_m", max_rise_m);
 	c.write(s, "support_radius_m", support_radius_m);
 	c.write(s, "seed_radius_m", seed_radius_m);
 	c.write(s, "seed_below_sensor_m", seed_below_sensor_m);
@@ -94,8 +98,9 @@ GroundLattice::GroundLattice(const GroundOptions& opts) : opts_(opts)
 
 NodeKey GroundLattice::keyOf(double x, double y) const
 {
-	return {static_cast<int32_t>(std::floor(x / opts_.node_spacing_m + 0.5)),
-	        static_cast<int32_t>(std::floor(y / opts_.node_spacing_m + 0.5))};
+	const double inv = 1.0 / opts_.node_spacing_m;
+	return {static_cast<int32_t>(std::floor(x * inv + 0.5)),
+	        static_cast<int32_t>(std::floor(y * inv + 0.5))};
 }
 
 namespace
@@ -105,6 +110,7 @@ enum CellState : uint8_t
 	kUnseen = 0,  ///< no (or too few) points this scan
 	kPending,     ///< has points, not decided yet
 	kAccepted,    ///< its level is ground
+	kCapped,      ///< ground, but its level sits above the ground around it
 	kRejected
 };
 
@@ -234,6 +240,7 @@ std::vector<uint8_t> GroundLattice::labelScan(
 	// Confident priors (nodes estimated in earlier scans), looked up lazily.
 	std::vector<float> prior_h(ncell, NAN), prior_sigma(ncell, NAN);
 	std::vector<uint8_t> prior_known(ncell, 0);
+	std::vector<LatticeNode*> node_of(ncell, nullptr);  // stable pointers
 	auto prior = [&](size_t c, float& h, float& sigma)
 	{
 		if (!prior_known[c])
@@ -242,6 +249,7 @@ std::vector<uint8_t> GroundLattice::labelScan(
 			const int di = static_cast<int>(c / W) - H,
 			          dj = static_cast<int>(c % W) - H;
 			const auto it = nodes_.find({c0.i + di, c0.j + dj});
+			if (it != nodes_.end()) node_of[c] = &it->second;
 			if (it != nodes_.end() && it->second.observations > 0 &&
 			    it->second.var_h < kConfidentVariance)
 			{
@@ -377,7 +385,7 @@ std::vector<uint8_t> GroundLattice::labelScan(
 				if ((!di && !dj) || std::abs(ni) > H || std::abs(nj) > H)
 					continue;
 				const size_t nb = cellIndex(ni, nj);
-				if (S.state[nb] == kAccepted)
+				if (S.state[nb] == kAccepted || S.state[nb] == kCapped)
 					around.push_back({di * s, dj * s, S.level[nb], true});
 				else if (S.state[nb] == kUnseen)
 				{
@@ -449,6 +457,15 @@ std::vector<uint8_t> GroundLattice::labelScan(
 			}
 		}
 		S.state[c] = ok ? kAccepted : kRejected;
+		// A level accepted but above the ground predicted around it is
+		// mostly what covers the ground (the low foliage of a shrub): the
+		// node is measured at the prediction + max_rise_m, not at it.
+		if (ok && std::isfinite(S.pred[c]) &&
+		    level > S.pred[c] + opts_.max_rise_m)
+		{
+			S.state[c] = kCapped;
+			S.level[c] = static_cast<float>(S.pred[c] + opts_.max_rise_m);
+		}
 		if (ok)
 		{
 			sector_z[bin] = static_cast<float>(level);
@@ -462,8 +479,23 @@ std::vector<uint8_t> GroundLattice::labelScan(
 	{
 		const size_t c = cellIndex(off.i, off.j);
 		if (S.state[c] == kUnseen) continue;
-		auto& node = nodes_[{c0.i + off.i, c0.j + off.j}];
+		float ph, psig;
+		prior(c, ph, psig);  // looks the node up
+		if (!node_of[c]) node_of[c] = &nodes_[{c0.i + off.i, c0.j + off.j}];
+		auto& node = *node_of[c];
 		node.var_h += opts_.prior_variance_growth_m2;
+		if (S.state[c] == kCapped)
+		{
+			// Raised by what covers the ground: measured as the level the
+			// ground around predicts, with the variance of max_rise_m.
+			const double var_m = std::max(opts_.measurement_variance_floor_m2,
+			                              opts_.max_rise_m * opts_.max_rise_m);
+			const double w = node.var_h / (node.var_h + var_m);
+			node.h += w * (S.level[c] - node.h);
+			node.var_h = node.var_h * var_m / (node.var_h + var_m);
+			node.observations++;
+			continue;
+		}
 		if (S.state[c] != kAccepted) continue;
 		Moments m = S.mom[c];
 		for (int di = -1; di <= 1; di++)
@@ -521,10 +553,10 @@ std::vector<uint8_t> GroundLattice::labelScan(
 		if (b == e) continue;
 		const NodeKey key{c0.i + off.i, c0.j + off.j};
 		const double xc = key.i * s, yc = key.j * s;
-		const auto it = nodes_.find(key);
+		float ph, psig;
+		prior(c, ph, psig);  // looks the node up
 		const LatticeNode* node =
-		    it != nodes_.end() && it->second.observations > 0 ? &it->second
-		                                                      : nullptr;
+		    node_of[c] && node_of[c]->observations > 0 ? node_of[c] : nullptr;
 		if (!node && !std::isfinite(S.pred[c])) continue;
 		// Highest low return per foot cell of this node (built on demand;
 		// a foot and the surface above it are in the same node but at

@@ -31,6 +31,10 @@ struct GroundOptions : public mrpt::config::CLoadableOptions
 	 * nodes around it predicts by at most this much: rejects shrub tops and
 	 * stem bases taken for ground where the true ground is hidden. */
 	double max_step_m = 0.2;
+	/** An accepted level more than this above the plane of the ground
+	 * around it is measured at that plane + max_rise_m: where the ground is
+	 * hidden under low foliage the lowest returns are the foliage's [m]. */
+	double max_rise_m = 0.05;
 	/** Accepted ground within this distance of a node supports it (the
 	 * plane its level must agree with) [m]. */
 	double support_radius_m = 3.0;
