@@ -6,6 +6,7 @@
 #include <forest_slam/core/config.h>
 #include <forest_slam/core/log.h>
 #include <forest_slam/pipeline/mapping_config.h>
+#include <forest_slam/outputs/write_outputs.h>
 #include <forest_slam/pipeline/mapping_job.h>
 
 #include <cstdio>
@@ -145,7 +146,12 @@ int cmdMap(const std::vector<std::string>& args)
 				s.dataSeconds(), r.wall_seconds,
 				r.wall_seconds > 0 ? s.scans_mapped / r.wall_seconds : 0.0,
 				r.wall_seconds > 0 ? s.dataSeconds() / r.wall_seconds : 0.0);
-	for (const auto& f : r.outputs) std::printf("wrote %s\n", f.c_str());
+	for (const auto& f : r.outputs)
+	{
+		const auto name = f.substr(f.find_last_of('/') + 1);
+		std::printf("wrote %-40s %s\n", f.c_str(),
+					forest_slam::outputs::describeOutput(name).c_str());
+	}
 	if (r.input_damaged)
 	{
 		std::fprintf(stderr, "forest-slam: input damaged: %s\n",

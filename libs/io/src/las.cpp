@@ -371,6 +371,7 @@ PointCloudFile readLas(const std::string& path)
 	out.intensity.resize(n);
 	out.classification.resize(n);
 	if (has_gps) out.gps_time_s.resize(n);
+	out.scan_angle_deg.resize(n);
 	for (uint64_t k = 0; k < n; k++)
 	{
 		const size_t r = point_offset + k * record_len;
@@ -383,6 +384,9 @@ PointCloudFile readLas(const std::string& path)
 		                            ? static_cast<uint8_t>(d[r + 16])
 		                            : static_cast<uint8_t>(d[r + 15] & 0x1F);
 		if (has_gps) out.gps_time_s[k] = get<double>(d, r + gps_at);
+		out.scan_angle_deg[k] =
+		    format >= 6 ? get<int16_t>(d, r + 18) * 0.006f
+		                : static_cast<float>(static_cast<int8_t>(d[r + 16]));
 	}
 	return out;
 }

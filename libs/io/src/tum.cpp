@@ -67,4 +67,21 @@ void writeTum(const std::string& path, const core::Trajectory& traj)
 	});
 }
 
+void writeKitti(const std::string& path, const core::Trajectory& traj)
+{
+	core::writeFileAtomically(path, [&](std::ostream& os) {
+		char buf[320];
+		for (const auto& p : traj)
+		{
+			const auto& m = p.pose.matrix();
+			std::snprintf(buf, sizeof(buf),
+						  "%.9e %.9e %.9e %.9e %.9e %.9e %.9e %.9e %.9e %.9e "
+						  "%.9e %.9e\n",
+						  m(0, 0), m(0, 1), m(0, 2), m(0, 3), m(1, 0), m(1, 1),
+						  m(1, 2), m(1, 3), m(2, 0), m(2, 1), m(2, 2), m(2, 3));
+			os << buf;
+		}
+	});
+}
+
 }  // namespace forest_slam::io

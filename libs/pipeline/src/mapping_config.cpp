@@ -19,6 +19,8 @@ MappingConfig MappingConfig::load(core::TrackedConfig& cfg)
 	m.odometry.ground.loadFromConfigFile(cfg, "ground");
 	m.odometry.cluster.loadFromConfigFile(cfg, "cluster");
 	m.odometry.features.loadFromConfigFile(cfg, "features");
+	m.outputs.loadFromConfigFile(cfg, "outputs");
+	m.georeference.loadFromConfigFile(cfg, "georeference");
 	// An online INI's sensor sections (driver = ...) and [online] belong to
 	// `forest-slam online`, which checks them; accepting them here lets the
 	// same INI re-map the recorded raw.rawlog offline.
@@ -55,6 +57,8 @@ std::string MappingConfig::dump() const
 	odometry.ground.saveToConfigFile(mem, "ground");
 	odometry.cluster.saveToConfigFile(mem, "cluster");
 	odometry.features.saveToConfigFile(mem, "features");
+	outputs.saveToConfigFile(mem, "outputs");
+	georeference.saveToConfigFile(mem, "georeference");
 	return mem.getContent();
 }
 

@@ -4,11 +4,10 @@
 #include <forest_slam/io/rawlog_follower.h>
 #include <forest_slam/io/rawlog_reader.h>
 #include <forest_slam/io/tum.h>
+#include <forest_slam/outputs/write_outputs.h>
 #include <forest_slam/pipeline/mapping_job.h>
-#include <forest_slam/trees/tree_csv.h>
 
 #include <mrpt/io/CFileGZInputStream.h>
-#include <mrpt/io/CFileGZOutputStream.h>
 #include <mrpt/serialization/CArchive.h>
 
 #include <algorithm>
@@ -274,27 +273,20 @@ std::vector<std::string> writeOutputs(
 	const MappingPipeline& p, const MappingResult& r, const std::string& dir)
 {
 	std::vector<std::string> written;
-	const std::string traj = dir + "/trajectory.tum";
-	io::writeTum(traj, p.trajectory());
-	written.push_back(traj);
-
-	const std::string map_path = dir + "/forest.map";
-	{
-		mrpt::io::CFileGZOutputStream out;
-		if (!out.open(core::tempPathFor(map_path), 1))
-			throw std::runtime_error("cannot create '" + map_path + "'");
-		auto arch = mrpt::serialization::archiveFrom(out);
-		arch << p.forestMap();
-		out.close();
-		core::commitTempFile(map_path);
-	}
-	written.push_back(map_path);
-
-	const std::string trees_csv = dir + "/trees.csv";
-	trees::writeTreesCsv(trees_csv, p.forestMap().trees());
-	written.push_back(trees_csv);
-
 	const auto& s = r.stats;
+	const auto& cfg = p.config();
+	outputs::RunFigures fig;
+	fig.scans = s.scans_mapped;
+	fig.data_seconds = s.dataSeconds();
+	fig.wall_seconds = r.wall_seconds;
+	// trajectory, forest.map, trees.csv (the tree layer) and the rest.
+	const auto out = outputs::writeRunOutputs(
+		{p.trajectory(), p.forestMap(), p.outputCollector(), cfg.outputs,
+		 cfg.georeference, cfg.trees, fig},
+		dir);
+	for (const auto& f : out.files) written.push_back(f.path);
+	const auto& col = p.outputCollector();
+
 	double tree_total_ms = s.tree_finish_ms;
 	for (double v : s.tree_ms) tree_total_ms += v;
 	const auto* layer = p.treeLayer();
@@ -327,7 +319,7 @@ std::vector<std::string> writeOutputs(
 		   << "  \"map_edge_voxels\": " << p.forestMap().edgePointCount() << ",\n"
 		   << "  \"map_planar_voxels\": " << p.forestMap().planarPointCount() << ",\n"
 		   << "  \"map_submaps\": " << p.forestMap().submaps().size() << ",\n"
-		   << "  \"trees\": " << p.forestMap().trees().size() << ",\n"
+		   << "  \"trees\": " << out.trees << ",\n"
 		   << "  \"tree_layer\": {\"total_ms\": " << tree_total_ms
 		   << ", \"share_of_wall\": "
 		   << (r.wall_seconds > 0 ? tree_total_ms / (1000 * r.wall_seconds) : 0)
@@ -335,6 +327,12 @@ std::vector<std::string> writeOutputs(
 		   << (layer ? layer->stats().detections : 0) << ", \"detect_ms\": "
 		   << (layer ? layer->stats().detect_ms : 0) << ", \"stem_voxels\": "
 		   << (layer ? layer->stats().stored_voxels : 0) << "},\n"
+		   << "  \"output_collect_ms_per_scan\": "
+		   << (col.scans() ? 1e3 * col.collectSeconds() / col.scans() : 0.0) << ",\n"
+		   << "  \"output_write_seconds\": " << out.seconds << ",\n"
+		   << "  \"keyframes\": " << out.keyframes << ",\n"
+		   << "  \"dense_points\": " << out.dense_points << ",\n"
+		   << "  \"peak_memory_mb\": " << outputs::peakMemoryMb() << ",\n"
 		   << "  \"input_damaged\": " << (r.input_damaged ? "true" : "false") << ",\n"
 		   << "  \"damage\": \"" << jsonEscape(r.damage_message) << "\",\n"
 		   << "  \"interrupted\": " << (r.interrupted ? "true" : "false") << "\n"

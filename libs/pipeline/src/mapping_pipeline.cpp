@@ -21,7 +21,9 @@ MappingPipeline::MappingPipeline(const MappingConfig& cfg,
     : cfg_(cfg),
       poses_(std::move(poses)),
       map_(cfg.forest_map),
-      imu_buffer_(cfg.odometry.imu)
+      imu_buffer_(cfg.odometry.imu),
+      outputs_(cfg.outputs, cfg.pipeline.min_range_m,
+               cfg.pipeline.max_range_m)
 {
 	if (cfg_.pipeline.poseSource() == PoseSource::Trajectory)
 	{
@@ -99,7 +101,10 @@ void MappingPipeline::process(const mrpt::obs::CObservation::Ptr& obs)
 	}
 	else if (label == o.gnss_label &&
 	         std::dynamic_pointer_cast<mrpt::obs::CObservationGPS>(obs))
+	{
 		stats_.gnss++;  // consumed by the back-end (issue 8)
+		outputs_.addGnss(*obs);
+	}
 	else
 	{
 		stats_.other++;
@@ -280,6 +285,7 @@ void MappingPipeline::runOdometry(PendingScan& s)
 	const auto step = odometry_->processScan(s.pts);
 	imu_buffer_.pruneBefore(s.pts.stamp_s - 1.0);
 	trajectory_.push_back(step.pose);
+	outputs_.addScan(s.pts, step.pose, &odometry_->groundLattice());
 	stats_.scans_mapped++;
 	stats_.scans_degenerate += step.degenerate;
 	stats_.scans_unregistered +=
@@ -406,6 +412,7 @@ void MappingPipeline::processScan(
 	map_.insertFeatures(edge_map, planar_map);
 	trajectory_.push_back({stamp, scan_pose});
 	feedTreeLayer(edge_map, planar_map, scan_pose.translation());
+	outputs_.addScan(pts, trajectory_.back(), nullptr);
 	stats_.scans_mapped++;
 }
 

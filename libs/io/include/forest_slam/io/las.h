@@ -20,6 +20,7 @@ struct PointCloudFile
 	std::vector<uint16_t> intensity;
 	std::vector<uint8_t> classification;
 	std::vector<double> gps_time_s;
+	std::vector<float> scan_angle_deg;	///< LAS: scan angle (rank)
 
 	size_t size() const { return xyz.size(); }
 };
@@ -36,6 +37,32 @@ class CloudFileError : public std::runtime_error
  * skipped). Intensity and classification are always filled; GPS time for
  * formats 1, 3, 6, 7, 8. */
 PointCloudFile readLas(const std::string& path);
+
+struct LasWriteOptions
+{
+	double scale_m = 0.001;	 ///< coordinate resolution (all three axes)
+	/** OGC WKT of the coordinate system; empty: no CRS record. */
+	std::string wkt;
+	/** GPS time field holds adjusted standard GPS time (global encoding bit
+	 * 0); the caller converts (see unixToAdjustedGpsTime). */
+	bool adjusted_standard_gps_time = true;
+	std::string system_id = "forest-slam lidar SLAM";
+	std::string software = "forest-slam";
+};
+
+/** LAS 1.4, point data record format 6 (30 bytes: X Y Z, intensity, return 1
+ * of 1, classification, scan angle in 0.006 deg, GPS time), written
+ * atomically; with `wkt`, one OGC coordinate system WKT VLR (user
+ * "LASF_Projection", record 2112). Empty optional attributes are written as
+ * 0 (classification: 1, unclassified). The legacy point counts are 0 as the
+ * specification requires for formats >= 6. Throws CloudFileError naming the
+ * file if a coordinate does not fit 32 bits at the scale. */
+void writeLas(const std::string& path, const PointCloudFile& cloud,
+			  const LasWriteOptions& o = LasWriteOptions());
+
+/** UNIX seconds -> adjusted standard GPS time (GPS seconds - 1e9), with the
+ * 18 leap seconds valid since 2017. */
+double unixToAdjustedGpsTime(double unix_s);
 
 /** PLY, ascii or binary_little_endian; the `vertex` element must come first
  * and have x, y, z (float or double). Other vertex properties are skipped,

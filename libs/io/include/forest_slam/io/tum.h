@@ -12,4 +12,9 @@ core::Trajectory readTum(const std::string& path);
 /** Atomic write, 9 decimals for time, 6 for metres, 9 for quaternions. */
 void writeTum(const std::string& path, const core::Trajectory& traj);
 
+/** KITTI odometry poses: per pose one line with the 3x4 matrix [R | t]
+ * row-major (12 numbers), in the trajectory's frame; no timestamps (they are
+ * the same lines' times in the TUM file). Atomic write. */
+void writeKitti(const std::string& path, const core::Trajectory& traj);
+
 }  // namespace forest_slam::io

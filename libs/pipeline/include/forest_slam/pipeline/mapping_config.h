@@ -5,6 +5,7 @@
 #include <forest_slam/map/forest_map.h>
 #include <forest_slam/pipeline/pipeline_options.h>
 #include <forest_slam/odometry/lidar_odometry.h>
+#include <forest_slam/outputs/output_options.h>
 #include <forest_slam/trees/tree_options.h>
 
 #include <ostream>
@@ -19,6 +20,8 @@ struct MappingConfig
 	/** [odometry] [registration] [ground] [cluster] [features] */
 	odometry::OdometryConfig odometry;
 	trees::TreeOptions trees;		   ///< [trees]
+	outputs::OutputOptions outputs;	 ///< [outputs]
+	outputs::GeoOptions georeference;  ///< [georeference]
 
 	/** Loads all sections and rejects unknown keys; throws core::ConfigError
 	 * naming file, section and key. */

@@ -44,8 +44,9 @@ MappingResult runMapping(const MappingJob& job);
 MappingResult runMapping(const MappingJob& job, const MappingConfig& cfg,
 						 ObservationSource& source);
 
-/** Writes trajectory.tum, forest.map (gzip MRPT archive of the CForestMap)
- * and run_summary.json into `out_dir`; returns the paths written. */
+/** Writes the outputs selected in [outputs] (outputs::writeRunOutputs:
+ * trajectory, keyframes, forest.map, LAS, OctoMap, trees, DTM, report) and
+ * run_summary.json into `out_dir`; returns the paths written. */
 std::vector<std::string> writeOutputs(
 	const MappingPipeline& p, const MappingResult& r, const std::string& out_dir);
 

@@ -5,6 +5,7 @@
 //   smoothness split edge/planar (map) -> deskew + insert into CForestMap.
 #include <forest_slam/core/trajectory.h>
 #include <forest_slam/map/forest_map.h>
+#include <forest_slam/outputs/run_collector.h>
 #include <forest_slam/pipeline/mapping_config.h>
 #include <forest_slam/trees/tree_layer.h>
 #include <mrpt/obs/CObservation.h>
@@ -69,6 +70,9 @@ class MappingPipeline
 	const core::Trajectory& trajectory() const { return trajectory_; }
 	const map::CForestMap& forestMap() const { return map_; }
 	const RunStats& stats() const { return stats_; }
+	const MappingConfig& config() const { return cfg_; }
+	/** Keyframes, dense map and GNSS epochs for the output files. */
+	const outputs::RunCollector& outputCollector() const { return outputs_; }
 	bool reachedScanLimit() const;
 	/** nullptr when [trees] layer_enabled = false. */
 	const trees::TreeLayer* treeLayer() const { return tree_layer_.get(); }
@@ -119,6 +123,7 @@ class MappingPipeline
 	 * (all of them with `all`, or when too many wait: the IMU lags). */
 	void drainPending(bool all);
 	void runOdometry(PendingScan& s);
+	outputs::RunCollector outputs_;
 
 	void accumulateGravity(const mrpt::obs::CObservation& imu);
 	/** First lidar pose in the map frame: at the origin, levelled with the

@@ -1,0 +1,92 @@
+#pragma once
+// What the outputs need from a mapping run beyond the CForestMap, collected
+// scan by scan through one hook in the MappingPipeline:
+//  - keyframes: a decimated, deskewed cloud with its sensor pose every N scans
+//    or D metres (keyframes.simplemap; OctoMap ray casting at the end, so it
+//    would follow later loop corrections of the keyframe poses);
+//  - the dense map (DenseMap) for map.las / DTM / trees;
+//  - GNSS epochs (report: GNSS coverage along the path);
+//  - the odometry's ground lattice (classification, DTM) when there is one.
+#include <forest_slam/core/scan_points.h>
+#include <forest_slam/core/trajectory.h>
+#include <forest_slam/outputs/dense_map.h>
+#include <forest_slam/outputs/output_options.h>
+
+#include <Eigen/Geometry>
+#include <vector>
+
+namespace mrpt::obs
+{
+class CObservation;
+}
+namespace forest_slam::ground
+{
+class GroundLattice;
+}
+
+namespace forest_slam::outputs
+{
+struct KeyframeCloud
+{
+	double t_s = 0;  ///< the scan's reference time (first firing)
+	Eigen::Isometry3d sensor_pose = Eigen::Isometry3d::Identity();  ///< -> map
+	std::vector<Eigen::Vector3f> points;  ///< sensor frame at t_s, deskewed
+	EIGEN_MAKE_ALIGNED_OPERATOR_NEW
+};
+using Keyframes =
+    std::vector<KeyframeCloud, Eigen::aligned_allocator<KeyframeCloud>>;
+
+struct GnssEpoch
+{
+	double t_s = 0;
+	int quality = 0;  ///< NMEA GGA fix quality: 0 none, 1 single, 2 DGPS,
+	                  ///< 4 RTK fixed, 5 RTK float
+	double lat_deg = 0, lon_deg = 0, alt_m = 0;
+};
+
+class RunCollector
+{
+   public:
+	/** Returns outside [min_range_m, max_range_m] are never used (the
+	 * pipeline's range gate: operator, vehicle body, sparse far points). */
+	explicit RunCollector(const OutputOptions& o, double min_range_m = 0,
+	                      double max_range_m = 1e9);
+
+	/** One mapped scan: `scan` in the sensor frame (already range-gated),
+	 * `pose` the lidar pose at its first firing; the motion during the sweep
+	 * is taken from the previous pose (constant velocity). `lattice` is the
+	 * odometry's ground lattice (may be null); it must outlive this object. */
+	void addScan(const core::ScanPoints& scan, const core::StampedPose& pose,
+	             const ground::GroundLattice* lattice);
+	/** A GNSS observation (CObservationGPS with a GGA message; others are
+	 * ignored). */
+	void addGnss(const mrpt::obs::CObservation& obs);
+
+	const Keyframes& keyframes() const { return keyframes_; }
+	const DenseMap& dense() const { return dense_; }
+	const std::vector<GnssEpoch>& gnss() const { return gnss_; }
+	const ground::GroundLattice* groundLattice() const { return lattice_; }
+	const OutputOptions& options() const { return o_; }
+	size_t scans() const { return scans_; }
+	/** CPU time spent in addScan, total [s]. */
+	double collectSeconds() const { return collect_s_; }
+
+   private:
+	OutputOptions o_;
+	float min_range_m_, max_range_m_;
+	Keyframes keyframes_;
+	DenseMap dense_;
+	std::vector<GnssEpoch> gnss_;
+	const ground::GroundLattice* lattice_ = nullptr;
+	size_t scans_ = 0, scans_since_keyframe_ = 0;
+	bool have_prev_ = false;
+	core::StampedPose prev_;
+	double collect_s_ = 0;
+	std::vector<Eigen::Isometry3f, Eigen::aligned_allocator<Eigen::Isometry3f>>
+	    column_motion_;  // per firing column: sensor(t) -> sensor(t0)
+	std::vector<uint8_t> column_done_;
+	std::vector<Eigen::Vector3f> map_xyz_;  // per scan, reused
+	std::vector<uint32_t> kept_;
+};
+
+}  // namespace forest_slam::outputs

@@ -1,0 +1,103 @@
+#include <forest_slam/core/atomic_file.h>
+#include <forest_slam/outputs/octomap_export.h>
+
+#include <octomap/ColorOcTree.h>
+#include <octomap/OcTree.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+
+namespace forest_slam::outputs
+{
+namespace
+{
+/** Blue (low) -> green -> red (high). */
+void heightColour(double f, uint8_t& r, uint8_t& g, uint8_t& b)
+{
+	f = std::clamp(f, 0.0, 1.0);
+	r = static_cast<uint8_t>(255 * std::clamp(2 * f - 1, 0.0, 1.0));
+	b = static_cast<uint8_t>(255 * std::clamp(1 - 2 * f, 0.0, 1.0));
+	g = static_cast<uint8_t>(255 - r - b);
+}
+
+void writeColourTree(const octomap::OcTree& tree, const std::string& path)
+{
+	double zmin = 1e300, zmax = -1e300;
+	for (auto it = tree.begin_leafs(), end = tree.end_leafs(); it != end; ++it)
+		if (tree.isNodeOccupied(*it))
+		{
+			zmin = std::min(zmin, it.getZ());
+			zmax = std::max(zmax, it.getZ());
+		}
+	octomap::ColorOcTree colour(tree.getResolution());
+	const double res = tree.getResolution();
+	for (auto it = tree.begin_leafs(), end = tree.end_leafs(); it != end; ++it)
+	{
+		if (!tree.isNodeOccupied(*it)) continue;
+		// A pruned leaf covers (size/res)^3 voxels of the finest level.
+		const int n =
+		    std::max(1, static_cast<int>(std::lround(it.getSize() / res)));
+		const double half = it.getSize() / 2 - res / 2;
+		for (int i = 0; i < n; i++)
+			for (int j = 0; j < n; j++)
+				for (int k = 0; k < n; k++)
+				{
+					const octomap::point3d p(it.getX() - half + i * res,
+					                         it.getY() - half + j * res,
+					                         it.getZ() - half + k * res);
+					auto* node = colour.updateNode(p, it->getLogOdds());
+					uint8_t r, g, b;
+					heightColour((p.z() - zmin) / std::max(1e-6, zmax - zmin),
+					             r, g, b);
+					node->setColor(r, g, b);
+				}
+	}
+	colour.updateInnerOccupancy();
+	if (!colour.write(core::tempPathFor(path)))
+		throw std::runtime_error("cannot write OctoMap '" + path + "'");
+	core::commitTempFile(path);
+}
+}  // namespace
+
+OctomapSummary writeOctomap(const Keyframes& keyframes, double resolution_m,
+                            double max_range_m, const std::string& bt_path,
+                            const std::string& ot_path)
+{
+	const auto t0 = std::chrono::steady_clock::now();
+	OctomapSummary s;
+	octomap::OcTree tree(resolution_m);
+	for (const auto& kf : keyframes)
+	{
+		octomap::Pointcloud cloud;
+		cloud.reserve(kf.points.size());
+		const Eigen::Isometry3f T = kf.sensor_pose.cast<float>();
+		for (const auto& p : kf.points)
+		{
+			const Eigen::Vector3f q = T * p;
+			cloud.push_back(q.x(), q.y(), q.z());
+		}
+		const auto& o = kf.sensor_pose.translation();
+		// discretize: one ray per end voxel (several points in one voxel
+		// would cast the same ray).
+		// lazy_eval: inner nodes are updated once at the end.
+		tree.insertPointCloud(cloud, octomap::point3d(o.x(), o.y(), o.z()),
+		                      max_range_m, true, true);
+		s.keyframes++;
+		s.rays += kf.points.size();
+	}
+	tree.updateInnerOccupancy();
+	for (auto it = tree.begin_leafs(), end = tree.end_leafs(); it != end; ++it)
+		(tree.isNodeOccupied(*it) ? s.occupied_leaves : s.free_leaves)++;
+	if (!tree.writeBinary(core::tempPathFor(bt_path)))
+		throw std::runtime_error("cannot write OctoMap '" + bt_path + "'");
+	core::commitTempFile(bt_path);
+	if (!ot_path.empty()) writeColourTree(tree, ot_path);
+	s.seconds =
+	    std::chrono::duration<double>(std::chrono::steady_clock::now() - t0)
+	        .count();
+	return s;
+}
+
+}  // namespace forest_slam::outputs

@@ -1,0 +1,321 @@
+#include <forest_slam/core/atomic_file.h>
+#include <forest_slam/core/log.h>
+#include <forest_slam/io/las.h>
+#include <forest_slam/io/tum.h>
+#include <forest_slam/outputs/classification.h>
+#include <forest_slam/outputs/georeference.h>
+#include <forest_slam/outputs/octomap_export.h>
+#include <forest_slam/outputs/report.h>
+#include <forest_slam/outputs/simplemap_export.h>
+#include <forest_slam/outputs/tree_export.h>
+#include <forest_slam/outputs/write_outputs.h>
+#include <forest_slam/trees/stem_detector.h>
+
+#include <mrpt/io/CFileGZOutputStream.h>
+#include <mrpt/serialization/CArchive.h>
+
+#include <sys/resource.h>
+
+#include <chrono>
+#include <cstdio>
+#include <map>
+
+namespace forest_slam::outputs
+{
+namespace
+{
+double secondsSince(std::chrono::steady_clock::time_point t0)
+{
+	return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0)
+	    .count();
+}
+
+/** map.ply: binary little endian, double x y z in the output frame. */
+void writePly(const std::string& path, const io::PointCloudFile& c)
+{
+	core::writeFileAtomically(
+	    path,
+	    [&](std::ostream& os)
+	    {
+		    os << "ply\nformat binary_little_endian 1.0\ncomment forest-slam "
+		          "dense map\nelement vertex "
+		       << c.size()
+		       << "\nproperty double x\nproperty double y\nproperty double z\n"
+		          "property ushort intensity\nproperty uchar classification\n"
+		          "property double gps_time\nend_header\n";
+		    for (size_t k = 0; k < c.size(); k++)
+		    {
+			    os.write(reinterpret_cast<const char*>(c.xyz[k].data()), 24);
+			    os.write(reinterpret_cast<const char*>(&c.intensity[k]), 2);
+			    os.write(reinterpret_cast<const char*>(&c.classification[k]),
+			             1);
+			    os.write(reinterpret_cast<const char*>(&c.gps_time_s[k]), 8);
+		    }
+	    },
+	    true);
+}
+
+/** map.pcd: PCL binary, float x y z (map frame: floats cannot hold UTM
+ * coordinates to the millimetre), intensity, label. */
+void writePcd(const std::string& path, const std::vector<DensePoint>& pts,
+              const std::vector<uint8_t>& cls)
+{
+	core::writeFileAtomically(
+	    path,
+	    [&](std::ostream& os)
+	    {
+		    os << "# .PCD v0.7 - forest-slam dense map (map frame)\nVERSION "
+		          "0.7\nFIELDS x y z intensity label\nSIZE 4 4 4 4 4\nTYPE F F "
+		          "F F U\nCOUNT 1 1 1 1 1\nWIDTH "
+		       << pts.size() << "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS "
+		       << pts.size() << "\nDATA binary\n";
+		    for (size_t k = 0; k < pts.size(); k++)
+		    {
+			    const float rec[4] = {pts[k].xyz.x(), pts[k].xyz.y(),
+			                          pts[k].xyz.z(),
+			                          pts[k].intensity / 256.0f};
+			    const uint32_t label = cls[k];
+			    os.write(reinterpret_cast<const char*>(rec), sizeof(rec));
+			    os.write(reinterpret_cast<const char*>(&label), 4);
+		    }
+	    },
+	    true);
+}
+}  // namespace
+
+std::string describeOutput(const std::string& f)
+{
+	static const std::map<std::string, std::string> kWhat = {
+	    {"trajectory.tum", "lidar pose per scan, TUM (t x y z qx qy qz qw)"},
+	    {"trajectory.kitti", "same poses as 3x4 KITTI matrices, one per line"},
+	    {"keyframes.simplemap",
+	     "MRPT CSimpleMap: keyframe point clouds at their lidar poses"},
+	    {"forest.map",
+	     "serialized CForestMap (submaps + tree layer), loadable"},
+	    {"map.las",
+	     "dense map, LAS 1.4 format 6: classes, intensity, GPS time"},
+	    {"map.ply", "dense map, binary PLY"},
+	    {"map.pcd", "dense map, binary PCD (map frame)"},
+	    {"map.bt",
+	     "OctoMap OcTree (binary): occupied + free space by ray casting"},
+	    {"map.ot", "OctoMap ColorOcTree: occupied voxels coloured by height"},
+	    {"trees.csv", "tree list: position, DBH, height, quality per stem"},
+	    {"trees.geojson", "trees as GeoJSON points for GIS"},
+	    {"dtm.asc", "terrain model, ESRI ASCII grid from the ground points"},
+	    {"report.html", "self-contained report: map, DBH, stand table, GNSS"},
+	    {"run_summary.json", "counts and timing of the run"},
+	};
+	const auto it = kWhat.find(f);
+	return it == kWhat.end() ? "" : it->second;
+}
+
+void writeForestMap(const std::string& path, const map::CForestMap& m)
+{
+	mrpt::io::CFileGZOutputStream out;
+	if (!out.open(core::tempPathFor(path), 1))
+		throw std::runtime_error("cannot create '" + path + "'");
+	auto arch = mrpt::serialization::archiveFrom(out);
+	arch << m;
+	out.close();
+	core::commitTempFile(path);
+}
+
+double peakMemoryMb()
+{
+	rusage u{};
+	getrusage(RUSAGE_SELF, &u);
+	return u.ru_maxrss / 1024.0;  // Linux: kilobytes
+}
+
+OutputSummary writeRunOutputs(const OutputInputs& in, const std::string& dir)
+{
+	const auto t_all = std::chrono::steady_clock::now();
+	const auto& o = in.options;
+	const auto& col = in.collector;
+	const auto geo = Georeference::fromOptions(in.geo);
+	OutputSummary sum;
+	sum.dense_points = col.dense().size();
+	sum.keyframes = col.keyframes().size();
+	const auto add =
+	    [&](const std::string& name, std::chrono::steady_clock::time_point t0)
+	{
+		sum.files.push_back({dir + "/" + name, describeOutput(name)});
+		FS_LOG_INFO("wrote " << name << " in " << secondsSince(t0) << " s");
+	};
+	const auto to_output = [&](const Eigen::Vector3d& p)
+	{ return geo ? geo->toProjected(p) : p; };
+
+	auto t = std::chrono::steady_clock::now();
+	if (o.trajectory_tum)
+	{
+		io::writeTum(dir + "/trajectory.tum", in.trajectory);
+		add("trajectory.tum", t);
+	}
+	if (o.trajectory_kitti)
+	{
+		t = std::chrono::steady_clock::now();
+		io::writeKitti(dir + "/trajectory.kitti", in.trajectory);
+		add("trajectory.kitti", t);
+	}
+	if (o.keyframes_simplemap)
+	{
+		t = std::chrono::steady_clock::now();
+		writeSimpleMap(dir + "/keyframes.simplemap",
+		               toSimpleMap(col.keyframes()));
+		add("keyframes.simplemap", t);
+	}
+	if (o.octomap_bt || o.octomap_ot)
+	{
+		t = std::chrono::steady_clock::now();
+		const std::string bt = dir + "/map.bt";
+		const auto s = writeOctomap(col.keyframes(), o.octomap_resolution_m,
+		                            o.octomap_max_range_m, bt,
+		                            o.octomap_ot ? dir + "/map.ot" : "");
+		FS_LOG_INFO("OctoMap: " << s.keyframes << " keyframes, " << s.rays
+		                        << " rays, " << s.occupied_leaves
+		                        << " occupied / " << s.free_leaves
+		                        << " free leaves");
+		if (o.octomap_bt)
+			add("map.bt", t);
+		else
+			std::remove(bt.c_str());
+		if (o.octomap_ot) add("map.ot", t);
+	}
+
+	// Terrain, trees and classes of the dense map.
+	const auto& pts = col.dense().points();
+	std::vector<map::TreeRecord> tree_list = in.map.trees();
+	std::string trees_source = "tree layer of the map";
+	std::vector<uint8_t> classes;
+	ElevationGrid dtm;
+	if (!pts.empty())
+	{
+		t = std::chrono::steady_clock::now();
+		const auto terrain =
+		    terrainForCloud(pts, col.groundLattice(), in.tree_options);
+		if (tree_list.empty() && o.detect_trees_if_empty &&
+		    (o.trees_csv || o.trees_geojson || o.report_html || o.forest_map ||
+		     o.las))
+		{
+			std::vector<Eigen::Vector3d> xyz(pts.size());
+			for (size_t k = 0; k < pts.size(); k++)
+				xyz[k] = pts[k].xyz.cast<double>();
+			tree_list = trees::toRecords(
+			    trees::detectTrees(xyz, terrain, in.tree_options));
+			trees_source = "detected on the dense map at the end of the run";
+			sum.trees_detected_here = true;
+			FS_LOG_INFO("trees: tree layer empty, "
+			            << tree_list.size() << " stems detected on the "
+			            << pts.size() << "-point dense map in "
+			            << secondsSince(t) << " s");
+		}
+		classes = classifyPoints(pts, terrain, tree_list, o);
+		dtm = groundGrid(pts, classes, o.dtm_cell_m, to_output);
+	}
+	sum.trees = tree_list.size();
+
+	if (o.forest_map)
+	{
+		t = std::chrono::steady_clock::now();
+		const std::string path = dir + "/forest.map";
+		if (sum.trees_detected_here)
+		{
+			map::CForestMap with_trees = in.map;
+			with_trees.setTrees(tree_list);
+			writeForestMap(path, with_trees);
+		}
+		else
+			writeForestMap(path, in.map);
+		add("forest.map", t);
+	}
+	if (!pts.empty() && (o.las || o.ply))
+	{
+		t = std::chrono::steady_clock::now();
+		io::PointCloudFile c;
+		c.xyz.resize(pts.size());
+		c.intensity.resize(pts.size());
+		c.gps_time_s.resize(pts.size());
+		c.scan_angle_deg.resize(pts.size());
+		c.classification = classes;
+		const double t0 = col.dense().timeOrigin();
+		for (size_t k = 0; k < pts.size(); k++)
+		{
+			c.xyz[k] = to_output(pts[k].xyz.cast<double>());
+			c.intensity[k] = pts[k].intensity;
+			c.gps_time_s[k] = io::unixToAdjustedGpsTime(t0 + pts[k].t_s);
+			c.scan_angle_deg[k] = pts[k].scan_angle * 0.006f;
+		}
+		if (o.las)
+		{
+			io::LasWriteOptions lo;
+			if (geo) lo.wkt = geo->wkt();
+			io::writeLas(dir + "/map.las", c, lo);
+			add("map.las", t);
+		}
+		if (o.ply)
+		{
+			t = std::chrono::steady_clock::now();
+			writePly(dir + "/map.ply", c);
+			add("map.ply", t);
+		}
+	}
+	if (!pts.empty() && o.pcd)
+	{
+		t = std::chrono::steady_clock::now();
+		writePcd(dir + "/map.pcd", pts, classes);
+		add("map.pcd", t);
+	}
+	if (o.trees_csv)
+	{
+		t = std::chrono::steady_clock::now();
+		writeTreesCsvGeo(dir + "/trees.csv", tree_list, geo);
+		add("trees.csv", t);
+	}
+	if (o.trees_geojson)
+	{
+		t = std::chrono::steady_clock::now();
+		writeTreesGeoJson(dir + "/trees.geojson", tree_list, geo);
+		add("trees.geojson", t);
+	}
+	if (o.dtm_asc)
+	{
+		if (dtm.cellsWithData() > 0)
+		{
+			t = std::chrono::steady_clock::now();
+			writeEsriAscii(dir + "/dtm.asc", dtm);
+			add("dtm.asc", t);
+		}
+		else
+			FS_LOG_WARN(
+			    "dtm.asc not written: no ground point in the dense map");
+	}
+	if (o.report_html)
+	{
+		t = std::chrono::steady_clock::now();
+		ReportInputs r;
+		r.trajectory = &in.trajectory;
+		r.trees = &tree_list;
+		r.gnss = &col.gnss();
+		r.trees_source = trees_source;
+		r.area_m2 = dtm.cellsWithData() * dtm.cell_m * dtm.cell_m;
+		r.crs = geo ? geo->crsName() : "";
+		r.scans = in.figures.scans;
+		r.data_seconds = in.figures.data_seconds;
+		r.wall_seconds = in.figures.wall_seconds;
+		r.peak_memory_mb = peakMemoryMb();
+		r.collect_ms_per_scan =
+		    col.scans() > 0 ? 1e3 * col.collectSeconds() / col.scans() : 0;
+		r.keyframes = sum.keyframes;
+		r.dense_points = sum.dense_points;
+		r.loop_closures = in.figures.loop_closures;
+		for (const auto& f : sum.files)
+			r.files.emplace_back(f.path.substr(dir.size() + 1), f.what);
+		r.files.emplace_back("report.html", describeOutput("report.html"));
+		writeReport(dir + "/report.html", r);
+		add("report.html", t);
+	}
+	sum.seconds = secondsSince(t_all);
+	return sum;
+}
+
+}  // namespace forest_slam::outputs
