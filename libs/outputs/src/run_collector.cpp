@@ -35,8 +35,42 @@ void RunCollector::addScan(const core::ScanPoints& scan,
                            const core::StampedPose& pose,
                            const ground::GroundLattice* lattice)
 {
-	const double cpu0 = threadCpuSeconds();
 	if (lattice) lattice_ = lattice;
+	if (pending_)
+	{
+		const core::StampedPose a = pending_->pose;
+		const std::function<bool(double, Eigen::Isometry3d&)> between =
+		    [&](double t, Eigen::Isometry3d& T) {
+			    if (!(pose.t_s > a.t_s)) return false;
+			    T = core::interpolateIsometry(
+			        a.pose, pose.pose,
+			        std::clamp((t - a.t_s) / (pose.t_s - a.t_s), 0.0, 1.0));
+			    return true;
+		    };
+		collect(pending_->scan, a, &between);
+	}
+	pending_ = Pending{scan, pose};
+}
+
+void RunCollector::finish()
+{
+	if (!pending_) return;
+	collect(pending_->scan, pending_->pose, nullptr);
+	pending_.reset();
+}
+
+void RunCollector::addScan(
+    const core::ScanPoints& scan, const core::StampedPose& pose,
+    const std::function<bool(double, Eigen::Isometry3d&)>& pose_at)
+{
+	collect(scan, pose, &pose_at);
+}
+
+void RunCollector::collect(
+    const core::ScanPoints& scan, const core::StampedPose& pose,
+    const std::function<bool(double, Eigen::Isometry3d&)>* pose_at)
+{
+	const double cpu0 = threadCpuSeconds();
 	if (scans_ == 0) dense_.setTimeOrigin(pose.t_s);
 
 	// Motion over the sweep from the previous pose (constant velocity).
@@ -77,10 +111,14 @@ void RunCollector::addScan(const core::ScanPoints& scan,
 		}
 		if (!column_done_[p.column])
 		{
-			column_motion_[p.column] =
-			    core::interpolateIsometry(Eigen::Isometry3d::Identity(), motion,
-			                              std::clamp(p.t_s / sweep, 0.0, 1.0))
-			        .cast<float>();
+			Eigen::Isometry3d T_col;
+			if (pose_at && (*pose_at)(pose.t_s + p.t_s, T_col))
+				T_col = pose.pose.inverse() * T_col;
+			else
+				T_col = core::interpolateIsometry(
+				    Eigen::Isometry3d::Identity(), motion,
+				    std::clamp(p.t_s / sweep, 0.0, 1.0));
+			column_motion_[p.column] = T_col.cast<float>();
 			column_done_[p.column] = 1;
 		}
 		const Eigen::Vector3f s =

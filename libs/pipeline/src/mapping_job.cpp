@@ -263,6 +263,7 @@ MappingResult runMapping(const MappingJob& job, const MappingConfig& cfg,
 	result.wall_seconds = std::chrono::duration<double>(
 							  std::chrono::steady_clock::now() - t0)
 							  .count();
+	pipeline.finishOutputs();
 	result.outputs = writeOutputs(pipeline, result, job.out_dir);
 	for (const auto& f : source.writeOutputs(job.out_dir))
 		result.outputs.push_back(f);

@@ -412,7 +412,9 @@ void MappingPipeline::processScan(
 	map_.insertFeatures(edge_map, planar_map);
 	trajectory_.push_back({stamp, scan_pose});
 	feedTreeLayer(edge_map, planar_map, scan_pose.translation());
-	outputs_.addScan(pts, trajectory_.back(), nullptr);
+	outputs_.addScan(pts, trajectory_.back(), [&](double t, Eigen::Isometry3d& T) {
+		return po.deskew && lidarPoseAt(t, T);
+	});
 	stats_.scans_mapped++;
 }
 

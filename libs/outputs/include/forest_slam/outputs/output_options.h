@@ -37,7 +37,7 @@ struct OutputOptions : public mrpt::config::CLoadableOptions
 	double dense_max_range_m = 40.0;
 
 	// OctoMap: ray casting from each keyframe's sensor position.
-	double octomap_resolution_m = 0.1;
+	double octomap_resolution_m = 0.2;
 	double octomap_max_range_m = 25.0;
 
 	// Classification (ASPRS LAS 1.4 classes) by height above the terrain.

@@ -73,6 +73,8 @@ class MappingPipeline
 	const MappingConfig& config() const { return cfg_; }
 	/** Keyframes, dense map and GNSS epochs for the output files. */
 	const outputs::RunCollector& outputCollector() const { return outputs_; }
+	/** Call once at the end of a run, before writing outputs. */
+	void finishOutputs() { outputs_.finish(); }
 	bool reachedScanLimit() const;
 	/** nullptr when [trees] layer_enabled = false. */
 	const trees::TreeLayer* treeLayer() const { return tree_layer_.get(); }
