@@ -3,6 +3,7 @@
 // selectable, readable by the tools it is meant for, and consistent with the
 // run; the report renders in headless Chromium when it is installed.
 #include "../pipeline/synthetic_scans.h"
+#include "test_files.h"
 
 #include <forest_slam/io/las.h>
 #include <forest_slam/io/rawlog_writer.h>
@@ -41,10 +42,7 @@ const Run& run()
 	static Run r = []
 	{
 		Run r;
-		r.dir = fs::temp_directory_path() /
-		        ("fs_outputs_run_" + std::to_string(::getpid()));
-		fs::remove_all(r.dir);
-		fs::create_directories(r.dir);
+		r.dir = test_support::freshTempDir("run");
 		const int n = 20;
 		io::writeTum((r.dir / "gt.tum").string(), r.world.groundTruth(n + 1));
 		{
@@ -69,14 +67,7 @@ const Run& run()
 	}();
 	return r;
 }
-
-std::string readText(const fs::path& p)
-{
-	std::ifstream f(p);
-	std::stringstream ss;
-	ss << f.rdbuf();
-	return ss.str();
-}
+using test_support::readText;
 }  // namespace
 
 TEST(OutputsRun, EveryOutputIsWritten)

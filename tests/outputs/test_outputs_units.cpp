@@ -1,6 +1,8 @@
 // Units of libs/outputs on synthetic data with known answers: LAS 1.4 bytes,
 // georeference, dense map, OctoMap ray casting, classification and DTM,
 // tree lists, stand table, report.
+#include "test_files.h"
+
 #include <forest_slam/io/las.h>
 #include <forest_slam/outputs/classification.h>
 #include <forest_slam/outputs/dense_map.h>
@@ -26,20 +28,16 @@ namespace fs = std::filesystem;
 
 namespace
 {
+using test_support::readText;
 fs::path tempDir(const std::string& name)
 {
-	const auto d = fs::temp_directory_path() /
-	               ("fs_outputs_" + name + "_" + std::to_string(::getpid()));
-	fs::remove_all(d);
-	fs::create_directories(d);
-	return d;
+	return test_support::freshTempDir(name);
 }
 
 std::vector<char> slurp(const fs::path& p)
 {
-	std::ifstream f(p, std::ios::binary);
-	return {std::istreambuf_iterator<char>(f),
-	        std::istreambuf_iterator<char>()};
+	const auto s = readText(p);
+	return {s.begin(), s.end()};
 }
 
 template <typename T>
@@ -48,14 +46,6 @@ T at(const std::vector<char>& d, size_t off)
 	T v;
 	std::memcpy(&v, d.data() + off, sizeof(T));
 	return v;
-}
-
-std::string readText(const fs::path& p)
-{
-	std::ifstream f(p);
-	std::stringstream ss;
-	ss << f.rdbuf();
-	return ss.str();
 }
 }  // namespace
 
