@@ -1,5 +1,7 @@
 #include "frontend_scorer.h"
 
+#include <forest_slam/odometry/lidar_odometry.h>
+
 #include <forest_slam/io/rawlog_reader.h>
 #include <forest_slam/io/tum.h>
 #include <mrpt/obs/CObservationRotatingScan.h>
@@ -188,20 +190,8 @@ bool FrontEndScorer::addScan(const core::ScanPoints& scan)
 	auto t0 = Clock::now();
 	const auto ground = lattice_.labelScan(in_map, T0.translation());
 	auto t1 = Clock::now();
-	std::vector<Eigen::Vector3f> ng;
-	std::vector<uint32_t> ng_idx;
-	for (size_t i = 0; i < fin.size(); i++)
-	{
-		fin[i].ground = ground[i] != 0;
-		if (!fin[i].ground)
-		{
-			ng.push_back(fin[i].xyz);
-			ng_idx.push_back(static_cast<uint32_t>(i));
-		}
-	}
-	const auto cl = cluster::hierarchicalKMeans(ng, o_.cluster);
-	for (size_t k = 0; k < ng_idx.size(); k++)
-		fin[ng_idx[k]].cluster = cl.cluster[k];
+	const size_t n_clusters =
+	    odometry::labelGroundAndCluster(fin, ground, o_.cluster);
 	auto t2 = Clock::now();
 	const auto feats = features::extractFeatures(fin, o_.features);
 	auto t3 = Clock::now();
@@ -241,12 +231,12 @@ bool FrontEndScorer::addScan(const core::ScanPoints& scan)
 		std::vector<uint16_t> trees, stem_trees;
 		uint32_t tree_points = 0;
 	};
-	std::vector<Members> members(cl.clusterCount());
-	for (size_t k = 0; k < ng_idx.size(); k++)
+	std::vector<Members> members(n_clusters);
+	for (size_t k = 0; k < fin.size(); k++)
 	{
-		const int32_t id = cl.cluster[k];
+		const int32_t id = fin[k].ground ? -1 : fin[k].cluster;
 		if (id < 0) continue;
-		const uint32_t i = src[ng_idx[k]];
+		const uint32_t i = src[k];
 		const uint16_t t = (*tree)[i];
 		if (t == 0) continue;
 		auto& m = members[id];
@@ -258,7 +248,7 @@ bool FrontEndScorer::addScan(const core::ScanPoints& scan)
 		        m.stem_trees.end())
 			m.stem_trees.push_back(t);
 	}
-	s.clusters = cl.clusterCount();
+	s.clusters = n_clusters;
 	for (const auto& m : members)
 	{
 		if (!m.trees.empty())

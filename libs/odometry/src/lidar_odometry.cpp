@@ -68,6 +68,27 @@ Eigen::Isometry3d SweepMotion::at(double s) const
 	return T;
 }
 
+size_t labelGroundAndCluster(std::vector<features::FeatureInputPoint>& pts,
+                             const std::vector<uint8_t>& ground,
+                             const cluster::ClusterOptions& o)
+{
+	std::vector<Eigen::Vector3f> ng;
+	std::vector<uint32_t> ng_idx;
+	for (size_t i = 0; i < pts.size(); i++)
+	{
+		pts[i].ground = ground[i] != 0;
+		if (!pts[i].ground)
+		{
+			ng.push_back(pts[i].xyz);
+			ng_idx.push_back(static_cast<uint32_t>(i));
+		}
+	}
+	const auto cl = cluster::hierarchicalKMeans(ng, o);
+	for (size_t k = 0; k < ng_idx.size(); k++)
+		pts[ng_idx[k]].cluster = cl.cluster[k];
+	return cl.clusterCount();
+}
+
 std::vector<features::FeatureInputPoint> deskewScan(
     const core::ScanPoints& scan, const SweepMotion& motion)
 {
@@ -112,20 +133,7 @@ LidarOdometry::Prepared LidarOdometry::prepare(
 	timing.ground_ms += msSince(t);
 
 	// Clusters of the non-ground points (sensor frame).
-	std::vector<Eigen::Vector3f> ng;
-	std::vector<uint32_t> ng_idx;
-	for (size_t i = 0; i < fin.size(); i++)
-	{
-		fin[i].ground = ground[i] != 0;
-		if (!fin[i].ground)
-		{
-			ng.push_back(fin[i].xyz);
-			ng_idx.push_back(static_cast<uint32_t>(i));
-		}
-	}
-	const auto cl = cluster::hierarchicalKMeans(ng, cfg_.cluster);
-	for (size_t k = 0; k < ng_idx.size(); k++)
-		fin[ng_idx[k]].cluster = cl.cluster[k];
+	labelGroundAndCluster(fin, ground, cfg_.cluster);
 	timing.cluster_ms += msSince(t);
 
 	// Features for registration; the decision factor of every point for the

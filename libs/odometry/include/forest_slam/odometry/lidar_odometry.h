@@ -90,6 +90,13 @@ struct SweepMotion
 std::vector<features::FeatureInputPoint> deskewScan(
     const core::ScanPoints& scan, const SweepMotion& motion);
 
+/** Marks the ground points (labels of GroundLattice::labelScan, same order)
+ * and gives every other point the id of its hierarchical k-means cluster;
+ * returns the number of clusters. */
+size_t labelGroundAndCluster(std::vector<features::FeatureInputPoint>& pts,
+                             const std::vector<uint8_t>& ground,
+                             const cluster::ClusterOptions& o);
+
 class LidarOdometry
 {
    public:
