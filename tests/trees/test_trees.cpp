@@ -4,10 +4,12 @@
 #include <forest_slam/io/las.h>
 #include <forest_slam/trees/circle_fit.h>
 #include <forest_slam/trees/outlier_filter.h>
+#include <forest_slam/trees/stem_clustering.h>
 #include <forest_slam/trees/stem_detector.h>
 #include <forest_slam/trees/terrain_model.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <random>
@@ -112,6 +114,27 @@ TEST(OutlierFilter, RemovesScatteredPointsKeepsTheStem)
 	    statisticalOutlierFilter(Points2D(5, Eigen::Vector2d::Zero()), 10, 0.4)
 	        .size(),
 	    5u);
+}
+
+// The neighbourhood criterion joins k-means leaves whose points come closer
+// than link_distance_m: two arcs 6 cm apart are one object, 10 cm apart two.
+TEST(SliceClustering, LeavesJoinedWithinLinkDistance)
+{
+	for (const double gap : {0.06, 0.10})
+	{
+		std::mt19937 rng(9);
+		auto p = arc(rng, {0, 0}, 0.15, 0, 360, 400, 0.002);
+		// A second stem whose bark is `gap` from the first one's.
+		const auto q = arc(rng, {0.30 + gap, 0}, 0.15, 0, 360, 400, 0.002);
+		p.insert(p.end(), q.begin(), q.end());
+		const auto leaf = sliceKMeansLeaves(p, 4, 75);
+		const int n_leaves = *std::max_element(leaf.begin(), leaf.end()) + 1;
+		EXPECT_GE(n_leaves, 8);  // k-means alone splits the stems
+		const auto c = mergeLeavesByNeighbourhood(p, leaf, 0.08);
+		size_t big = 0;
+		for (const auto& x : c) big += x.size() >= 100;
+		EXPECT_EQ(big, gap < 0.08 ? 1u : 2u) << "gap " << gap;
+	}
 }
 
 namespace
@@ -288,7 +311,9 @@ TEST(Trees, SyntheticPlotWithShrubsAndWall)
 // TreeLS pine plot (10 × 10 m TLS). Manual inspection of the 1.2–1.4 m slice
 // (doc/trees.md): about 18 stem cross-sections, a planted grid in rows x ≈ 0.4,
 // 3.4, 6.3, 9.3 m, several cut by the plot border or seen from one side only.
-// The 12 stems confirmed by >= 4 slices are pinned with diameters estimated
+// The stems confirmed by >= 4 slices (14 today; 12 before the section RMSE
+// gate was widened for SLAM maps, which added the small stem at (3.46, 1.51)
+// and the border stem at (0.28, 2.05)) are pinned with diameters estimated
 // independently from the slice (algebraic fit on the hand-isolated cluster).
 TEST(Trees, PinePlotRealData)
 {
@@ -296,8 +321,8 @@ TEST(Trees, PinePlotRealData)
 	    std::string(FOREST_SLAM_SHARED_DIR) + "/data/treels/pine_plot.las");
 	TreeOptions o;
 	const auto found = detectTrees(c.xyz, buildDtm(c.xyz, o), o);
-	EXPECT_GE(found.size(), 11u);
-	EXPECT_LE(found.size(), 14u);
+	EXPECT_GE(found.size(), 12u);
+	EXPECT_LE(found.size(), 15u);
 	for (const auto& t : found)
 	{
 		EXPECT_GE(t.record.dbh_m, 0.11);
@@ -318,7 +343,8 @@ TEST(Trees, PinePlotRealData)
 	                       {9.30, 5.44, 0.164},
 	                       {3.44, 5.71, 0.157},
 	                       {3.51, 7.68, 0.155},
-	                       {9.36, 3.39, 0.131}})
+	                       {9.36, 3.39, 0.131},
+	                       {3.46, 1.51, 0.13}})
 	{
 		const DetectedTree* f = nullptr;
 		for (const auto& t : found)

@@ -1,8 +1,6 @@
 #include <forest_slam/cluster/hierarchical_kmeans.h>
 #include <forest_slam/trees/stem_clustering.h>
 
-#include <nanoflann.hpp>
-
 #include <algorithm>
 #include <cmath>
 #include <numeric>
@@ -12,20 +10,6 @@ namespace forest_slam::trees
 {
 namespace
 {
-struct Adaptor
-{
-	const Points2D& p;
-	size_t kdtree_get_point_count() const { return p.size(); }
-	double kdtree_get_pt(size_t i, size_t d) const { return p[i][int(d)]; }
-	template <class B>
-	bool kdtree_get_bbox(B&) const
-	{
-		return false;
-	}
-};
-using Tree = nanoflann::KDTreeSingleIndexAdaptor<
-    nanoflann::L2_Simple_Adaptor<double, Adaptor>, Adaptor, 2, size_t>;
-
 int findRoot(std::vector<int>& parent, int i)
 {
 	while (parent[i] != i) i = parent[i] = parent[parent[i]];
@@ -33,8 +17,10 @@ int findRoot(std::vector<int>& parent, int i)
 }
 }  // namespace
 
-Points2D thinToCells(const Points2D& p, double cell_m)
+Points2D thinToCells(const Points2D& p, double cell_m,
+                     std::vector<uint32_t>* cell_of)
 {
+	if (cell_of) cell_of->assign(p.size(), 0);
 	std::vector<std::pair<std::pair<int64_t, int64_t>, size_t>> keyed;
 	keyed.reserve(p.size());
 	for (size_t i = 0; i < p.size(); i++)
@@ -48,7 +34,10 @@ Points2D thinToCells(const Points2D& p, double cell_m)
 		Eigen::Vector2d sum = Eigen::Vector2d::Zero();
 		size_t k = j;
 		for (; k < keyed.size() && keyed[k].first == keyed[j].first; k++)
+		{
 			sum += p[keyed[k].second];
+			if (cell_of) (*cell_of)[keyed[k].second] = uint32_t(out.size());
+		}
 		out.push_back(sum / double(k - j));
 		j = k;
 	}
@@ -87,44 +76,70 @@ std::vector<std::vector<size_t>> mergeLeavesByNeighbourhood(
 	const int n_leaves = *std::max_element(leaf.begin(), leaf.end()) + 1;
 	std::vector<int> parent(n_leaves);
 	std::iota(parent.begin(), parent.end(), 0);
-	// Points closer than link_m / 8 in the same leaf link the same leaves:
-	// search from one representative of each such group only (slices of a
-	// voxelised map stack ~10 points on every spot of a stem).
-	const double cell = link_m / 8;
-	std::vector<std::tuple<int64_t, int64_t, int, size_t>> keyed;
+	// Exact pairs within link_m lie in the same or adjacent link_m squares.
+	// Only pairs of points from different leaves matter, and most squares
+	// hold one leaf only, so the squares are compared, not searched.
+	std::vector<std::tuple<int64_t, int64_t, size_t>> keyed;
 	keyed.reserve(p.size());
 	for (size_t i = 0; i < p.size(); i++)
-		keyed.emplace_back(int64_t(std::floor(p[i].x() / cell)),
-		                   int64_t(std::floor(p[i].y() / cell)), leaf[i], i);
+		keyed.emplace_back(int64_t(std::floor(p[i].x() / link_m)),
+		                   int64_t(std::floor(p[i].y() / link_m)), i);
 	std::sort(keyed.begin(), keyed.end());
-	Points2D rep;
-	std::vector<int> rep_leaf;
-	for (size_t j = 0; j < keyed.size(); j++)
+	struct Square
 	{
-		const auto& [x, y, l, i] = keyed[j];
-		if (j > 0 && std::get<0>(keyed[j - 1]) == x &&
-		    std::get<1>(keyed[j - 1]) == y && std::get<2>(keyed[j - 1]) == l)
-			continue;
-		rep.push_back(p[i]);
-		rep_leaf.push_back(l);
-	}
-	Adaptor ad{rep};
-	Tree tree(2, ad, nanoflann::KDTreeSingleIndexAdaptorParams(10));
-	tree.buildIndex();
-	std::vector<std::pair<size_t, double>> hits;
-	nanoflann::SearchParams sp;
-	sp.sorted = false;
-	for (size_t i = 0; i < rep.size(); i++)
+		int64_t x, y;
+		size_t begin, end;
+		bool one_leaf;
+	};
+	std::vector<Square> sq;
+	for (size_t j = 0; j < keyed.size();)
 	{
-		const double q[2] = {rep[i].x(), rep[i].y()};
-		tree.radiusSearch(q, link_m * link_m, hits, sp);
-		for (const auto& h : hits)
-		{
-			const int a = findRoot(parent, rep_leaf[i]),
-			          b = findRoot(parent, rep_leaf[h.first]);
-			if (a != b) parent[a] = b;
-		}
+		const auto [x, y, i0] = keyed[j];
+		size_t k = j;
+		bool one = true;
+		for (; k < keyed.size() && std::get<0>(keyed[k]) == x &&
+		       std::get<1>(keyed[k]) == y;
+		     k++)
+			one = one && leaf[std::get<2>(keyed[k])] == leaf[i0];
+		sq.push_back({x, y, j, k, one});
+		j = k;
 	}
+	auto findSquare = [&](int64_t x, int64_t y) -> const Square*
+	{
+		const auto it = std::lower_bound(
+		    sq.begin(), sq.end(), std::make_pair(x, y),
+		    [](const Square& s, const std::pair<int64_t, int64_t>& k)
+		    { return std::make_pair(s.x, s.y) < k; });
+		return it != sq.end() && it->x == x && it->y == y ? &*it : nullptr;
+	};
+	const double link2 = link_m * link_m;
+	for (const auto& a : sq)
+		for (int dx = 0; dx <= 1; dx++)
+			for (int dy = -1; dy <= 1; dy++)
+			{
+				if (dx == 0 && dy < 0) continue;  // each pair of squares once
+				const Square* b =
+				    dx == 0 && dy == 0 ? &a : findSquare(a.x + dx, a.y + dy);
+				if (!b) continue;
+				if (a.one_leaf && b->one_leaf &&
+				    findRoot(parent, leaf[std::get<2>(keyed[a.begin])]) ==
+				        findRoot(parent, leaf[std::get<2>(keyed[b->begin])]))
+					continue;
+				for (size_t u = a.begin; u < a.end; u++)
+				{
+					const size_t i = std::get<2>(keyed[u]);
+					for (size_t v = (b == &a ? u + 1 : b->begin); v < b->end;
+					     v++)
+					{
+						const size_t j = std::get<2>(keyed[v]);
+						if (leaf[i] == leaf[j]) continue;
+						const int ra = findRoot(parent, leaf[i]),
+						          rb = findRoot(parent, leaf[j]);
+						if (ra != rb && (p[i] - p[j]).squaredNorm() <= link2)
+							parent[ra] = rb;
+					}
+				}
+			}
 	std::vector<int> slot(n_leaves, -1);
 	for (size_t i = 0; i < p.size(); i++)
 	{

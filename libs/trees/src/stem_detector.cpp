@@ -11,6 +11,8 @@ namespace forest_slam::trees
 {
 namespace
 {
+constexpr size_t kSectionFitPoints = 300;
+
 CircleFitOptions fitOptions(const TreeOptions& o, double rmin, double rmax)
 {
 	CircleFitOptions f;
@@ -79,21 +81,42 @@ std::vector<StemSection> findSliceSections(const Points2D& xy, int slice_index,
                                            size_t* n_clusters)
 {
 	std::vector<StemSection> out;
+	// The objects of a slice are told apart at the scale of link_distance_m:
+	// cluster one point per link_distance_m/4 square (the slice of a dense
+	// map holds tens of points per such square; the neighbourhood search
+	// over all of them was most of the detection time), then give every
+	// point its square's cluster, so the circle fits see all points.
+	std::vector<uint32_t> cell_of;
+	const Points2D coarse = thinToCells(xy, 0.25 * o.link_distance_m, &cell_of);
 	const auto leaf =
-	    sliceKMeansLeaves(xy, o.kmeans_branching, o.kmeans_leaf_points);
-	const auto clusters =
-	    mergeLeavesByNeighbourhood(xy, leaf, o.link_distance_m);
+	    sliceKMeansLeaves(coarse, o.kmeans_branching, o.kmeans_leaf_points);
+	const auto coarse_clusters =
+	    mergeLeavesByNeighbourhood(coarse, leaf, o.link_distance_m);
+	std::vector<uint32_t> cluster_of(coarse.size());
+	for (size_t c = 0; c < coarse_clusters.size(); c++)
+		for (size_t i : coarse_clusters[c]) cluster_of[i] = uint32_t(c);
+	std::vector<std::vector<size_t>> clusters(coarse_clusters.size());
+	for (size_t i = 0; i < xy.size(); i++)
+		clusters[cluster_of[cell_of[i]]].push_back(i);
 	if (n_clusters) *n_clusters = clusters.size();
 	const double rmin = 0.5 * o.min_dbh_m * 0.7, rmax = 0.5 * o.max_dbh_m * 1.2;
 	for (const auto& c : clusters)
 	{
 		if (c.size() < size_t(o.min_slice_points)) continue;
 		Eigen::Vector2d lo = xy[c[0]], hi = xy[c[0]];
+		// A section only has to be recognised and located (the DBH is fitted
+		// later on all points): an evenly strided subset of at most
+		// kSectionFitPoints keeps the fit cost bounded on dense maps.
+		const size_t stride =
+		    (c.size() + kSectionFitPoints - 1) / kSectionFitPoints;
 		Points2D pts;
-		pts.reserve(c.size());
-		for (size_t i : c)
-			pts.push_back(xy[i]), lo = lo.cwiseMin(xy[i]),
-			                      hi = hi.cwiseMax(xy[i]);
+		pts.reserve(c.size() / stride + 1);
+		for (size_t j = 0; j < c.size(); j++)
+		{
+			const auto& q = xy[c[j]];
+			lo = lo.cwiseMin(q), hi = hi.cwiseMax(q);
+			if (j % stride == 0) pts.push_back(q);
+		}
 		// Walls and hedges: wider than any stem we accept.
 		if ((hi - lo).maxCoeff() > 1.5 * o.max_dbh_m) continue;
 		const auto f = fitCircleRobust(pts, fitOptions(o, rmin, rmax));

@@ -13,8 +13,10 @@ namespace forest_slam::trees
 {
 /** One point per occupied `cell_m` square: the mean of its points (a slice
  * of a voxelised map stacks ~10 points on every spot of a stem). Sorted by
- * cell, deterministic. */
-Points2D thinToCells(const Points2D& p, double cell_m);
+ * cell, deterministic. If `cell_of` is given it receives, for every input
+ * point, the index of its square's output point. */
+Points2D thinToCells(const Points2D& p, double cell_m,
+                     std::vector<uint32_t>* cell_of = nullptr);
 
 /** Leaf index of each point of `p` (0..n_leaves-1): cluster::hierarchicalKMeans
  * on the points centred on their mean (float precision on georeferenced

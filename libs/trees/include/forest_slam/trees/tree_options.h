@@ -32,7 +32,7 @@ struct TreeOptions : public mrpt::config::CLoadableOptions
 	// A slice cluster is a stem section if its circle is plausible.
 	double min_dbh_m = 0.06;
 	double max_dbh_m = 1.2;
-	double section_max_rmse_m = 0.02;  ///< plus section_rmse_rel * radius
+	double section_max_rmse_m = 0.035;  ///< plus section_rmse_rel * radius
 	double section_rmse_rel = 0.08;
 	double section_min_arc_deg = 60;
 	double section_min_inlier_ratio = 0.6;
