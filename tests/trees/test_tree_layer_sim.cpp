@@ -89,10 +89,13 @@ TEST(TreeLayerSim, TinyScenarioWithGroundTruthPoses)
 	EXPECT_GE(d["tp"].asUInt(), 40u);
 	EXPECT_GE(d["recall"].asDouble(), 0.95);
 	EXPECT_GE(d["precision"].asDouble(), 0.95);
-	EXPECT_LE(j["dbh"]["rmse_m"].asDouble(), 0.025);
-	EXPECT_LE(std::abs(j["dbh"]["bias_m"].asDouble()), 0.015);
-	EXPECT_LE(j["dbh"]["mape_pct"].asDouble(), 10.0);
-	EXPECT_LE(j["position_err_m"]["rmse"].asDouble(), 0.05);
+	// Measured: DBH RMSE 1.24 cm, bias -0.19 cm, MAPE 4.7 %, position 1.2 cm
+	// (before the along-ray DBH fit and the 1.0-1.6 m band: 1.94 cm, -1.04
+	// cm, 7.7 %, 1.7 cm).
+	EXPECT_LE(j["dbh"]["rmse_m"].asDouble(), 0.016);
+	EXPECT_LE(std::abs(j["dbh"]["bias_m"].asDouble()), 0.006);
+	EXPECT_LE(j["dbh"]["mape_pct"].asDouble(), 6.5);
+	EXPECT_LE(j["position_err_m"]["rmse"].asDouble(), 0.03);
 
 	// The tree layer's cost is reported per stage.
 	const auto s = readJson(out + "/run_summary.json");

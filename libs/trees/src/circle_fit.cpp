@@ -149,6 +149,107 @@ bool refineCircleGeometric(const Points2D& p, Circle& c, double min_scale_m,
 	return x.allFinite() && x[2] > 0;
 }
 
+namespace
+{
+/** Distance t along the ray q + t·d (d unit) from the circle's near
+ * intersection to q (q = surface + t·d, so t > 0 behind the surface) and its
+ * derivatives by (cx, cy, r); false if the ray misses the circle. */
+bool rayResidual(const Eigen::Vector2d& q, const Eigen::Vector2d& d,
+                 const Circle& c, double& t, Eigen::Vector3d& J)
+{
+	// |a - s d| = r with a = q - c, the intersection at q - s d: s² - 2 (a·d) s
+	// + |a|² - r² = 0; the near surface is the smaller root.
+	const Eigen::Vector2d a = q - c.centre;
+	const double ad = a.dot(d);
+	const double disc = ad * ad - a.squaredNorm() + c.radius_m * c.radius_m;
+	if (disc < 0) return false;
+	t = ad + std::sqrt(disc);  // q = (near surface point) + t·d
+	// Implicit derivatives of F(t, c, r) = |a - t d|² - r² = 0.
+	const Eigen::Vector2d u = a - t * d;  // surface point - centre
+	const double Ft = -2 * u.dot(d);
+	if (std::abs(Ft) < 1e-12) return false;
+	const Eigen::Vector2d Fc = -2 * u;
+	const double Fr = -2 * c.radius_m;
+	J << -Fc.x() / Ft, -Fc.y() / Ft, -Fr / Ft;
+	return true;
+}
+}  // namespace
+
+bool refineCircleAlongRays(const Points2D& p, const Points2D& dir, Circle& c,
+                           double min_scale_m, int max_iterations)
+{
+	if (p.size() != dir.size() || p.size() < 3) return false;
+	Eigen::Vector3d x(c.centre.x(), c.centre.y(), c.radius_m);
+	double lambda = 1e-3;
+	std::vector<double> r(p.size());
+	std::vector<char> hit(p.size());
+	// Cost with a fixed scale; a missed ray costs the Tukey maximum.
+	auto cost = [&](const Circle& cc, double s)
+	{
+		double sum = 0;
+		Eigen::Vector3d J;
+		for (size_t i = 0; i < p.size(); i++)
+		{
+			double t;
+			sum += rayResidual(p[i], dir[i], cc, t, J) ? tukeyRho(t, s)
+			                                           : tukeyRho(1e9, s);
+		}
+		return sum;
+	};
+	for (int it = 0; it < max_iterations; it++)
+	{
+		const Circle cur{{x[0], x[1]}, x[2]};
+		std::vector<double> hits;
+		std::vector<Eigen::Vector3d, Eigen::aligned_allocator<Eigen::Vector3d>>
+		    Js(p.size());
+		for (size_t i = 0; i < p.size(); i++)
+		{
+			hit[i] = rayResidual(p[i], dir[i], cur, r[i], Js[i]);
+			if (hit[i]) hits.push_back(r[i]);
+		}
+		if (hits.size() < 3) return false;
+		const double s = madScale(hits, min_scale_m);
+		Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
+		Eigen::Vector3d g = Eigen::Vector3d::Zero();
+		for (size_t i = 0; i < p.size(); i++)
+		{
+			if (!hit[i]) continue;
+			const double w = tukeyWeight(r[i], s);
+			if (w == 0) continue;
+			H += w * Js[i] * Js[i].transpose();
+			g += w * Js[i] * r[i];
+		}
+		const double c0 = cost(cur, s);
+		bool improved = false;
+		for (int tries = 0; tries < 10 && !improved; tries++)
+		{
+			Eigen::Matrix3d Hd = H;
+			Hd.diagonal() *= (1 + lambda);
+			const Eigen::Vector3d step = Hd.ldlt().solve(-g);
+			if (!step.allFinite()) return false;
+			const Eigen::Vector3d xn = x + step;
+			if (!(xn[2] > 0))
+			{
+				lambda *= 10;
+				continue;
+			}
+			if (cost(Circle{{xn[0], xn[1]}, xn[2]}, s) <= c0)
+			{
+				const double dx = step.norm();
+				x = xn;
+				lambda = std::max(lambda / 10, 1e-9);
+				improved = true;
+				if (dx < 1e-9) it = max_iterations;
+			}
+			else
+				lambda *= 10;
+		}
+		if (!improved) break;
+	}
+	c = Circle{{x[0], x[1]}, x[2]};
+	return x.allFinite() && x[2] > 0;
+}
+
 double arcCoverageDeg(const Points2D& p, const Circle& c, double max_residual_m,
                       double bin_deg)
 {

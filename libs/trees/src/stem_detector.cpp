@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
 
 namespace forest_slam::trees
 {
@@ -141,11 +142,14 @@ std::vector<StemSection> findSliceSections(const Points2D& xy, int slice_index,
 	return out;
 }
 
-std::vector<DetectedTree> detectTrees(const std::vector<Eigen::Vector3d>& pts,
-                                      const TerrainModel& terrain,
-                                      const TreeOptions& o,
-                                      TreeDetectionStats* stats)
+std::vector<DetectedTree> detectTrees(
+    const std::vector<Eigen::Vector3d>& pts, const TerrainModel& terrain,
+    const TreeOptions& o, TreeDetectionStats* stats,
+    const std::vector<Eigen::Vector3f>* view_dirs)
 {
+	if (view_dirs && view_dirs->size() != pts.size())
+		throw std::invalid_argument(
+		    "detectTrees: view_dirs must hold one direction per point");
 	TreeDetectionStats st;
 	std::vector<double> hag(pts.size());
 	for (size_t i = 0; i < pts.size(); i++)
@@ -306,7 +310,7 @@ std::vector<DetectedTree> detectTrees(const std::vector<Eigen::Vector3d>& pts,
 		const Eigen::Vector3d e2 = axis.cross(e1).normalized();
 		e1 = e2.cross(axis).normalized();
 
-		Points2D band;
+		Points2D band, band_dir;  // band_dir: unit, or 0 if unknown
 		size_t n_points = 0;
 		std::vector<double> column_h;
 		const double lo_h = o.slice_min_m - 0.5 * o.slice_thickness_m;
@@ -341,6 +345,18 @@ std::vector<DetectedTree> detectTrees(const std::vector<Eigen::Vector3d>& pts,
 			{
 				const Eigen::Vector3d d = pts[i] - p0;
 				band.emplace_back(d.dot(e1), d.dot(e2));
+				Eigen::Vector2d v = Eigen::Vector2d::Zero();
+				if (view_dirs)
+				{
+					const Eigen::Vector3d w = (*view_dirs)[i].cast<double>();
+					v = Eigen::Vector2d(w.dot(e1), w.dot(e2));
+					// Mean of unit vectors: short if the voxel was seen from
+					// very different sides; nearly vertical rays carry no
+					// horizontal range information either.
+					v = v.norm() > 0.5 ? Eigen::Vector2d(v.normalized())
+					                   : Eigen::Vector2d::Zero();
+				}
+				band_dir.push_back(v);
 			}
 		}
 		if (n_points < size_t(o.min_tree_points))
@@ -372,16 +388,37 @@ std::vector<DetectedTree> detectTrees(const std::vector<Eigen::Vector3d>& pts,
 		if (f.ok)
 		{
 			const double gate = std::max(4 * f.scale_m, 2 * o.ransac_inlier_m);
-			Points2D near;
-			for (const auto& q : band)
-				if (std::abs((q - f.circle.centre).norm() -
+			Points2D near, near_dir;
+			for (size_t j = 0; j < band.size(); j++)
+				if (std::abs((band[j] - f.circle.centre).norm() -
 				             f.circle.radius_m) <= gate)
-					near.push_back(q);
+					near.push_back(band[j]), near_dir.push_back(band_dir[j]);
 			Circle c = f.circle;
 			if (near.size() >= size_t(o.min_dbh_points) &&
 			    refineCircleGeometric(near, c) &&
 			    c.radius_m >= fo.min_radius_m && c.radius_m <= fo.max_radius_m)
 				f = evaluateCircle(near, c, fo);
+			// Range noise is along the rays: where the viewing directions
+			// are known, refine with along-ray residuals (unbiased on one-
+			// sided arcs, where orthogonal ones shrink the circle). A result
+			// far from the orthogonal one (a short, noisy arc the ray model
+			// cannot pin down) is not trusted.
+			Points2D ray_p, ray_d;
+			for (size_t j = 0; j < near.size(); j++)
+				if (near_dir[j].squaredNorm() > 0)
+					ray_p.push_back(near[j]), ray_d.push_back(near_dir[j]);
+			Circle cr = f.circle;
+			if (o.dbh_along_rays &&
+			    ray_p.size() >=
+			        std::max<size_t>(o.min_dbh_points, near.size() / 2) &&
+			    refineCircleAlongRays(ray_p, ray_d, cr) &&
+			    std::abs(cr.radius_m - f.circle.radius_m) <=
+			        0.25 * f.circle.radius_m &&
+			    (cr.centre - f.circle.centre).norm() <=
+			        0.5 * f.circle.radius_m &&
+			    cr.radius_m >= fo.min_radius_m &&
+			    cr.radius_m <= fo.max_radius_m)
+				f = evaluateCircle(near, cr, fo);
 		}
 		if (f.ok)
 		{

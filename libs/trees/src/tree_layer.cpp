@@ -57,10 +57,10 @@ void TreeLayer::SortedVoxels::compact(size_t max_pending)
 	if (pending_.size() <= max_pending || pending_.empty()) return;
 	std::vector<Voxel> add;
 	add.reserve(pending_.size());
-	for (const auto& p : pending_)
+	for (const auto& q : pending_)
 	{
-		const uint64_t k = keyOf(p);
-		add.push_back({k, p - centreOf(k), 1});
+		const uint64_t k = keyOf(q.p);
+		add.push_back({k, q.p - centreOf(k), q.dir, 1});
 	}
 	pending_.clear();
 	pending_.shrink_to_fit();
@@ -77,7 +77,8 @@ void TreeLayer::SortedVoxels::transform(const Eigen::Isometry3f& T)
 	{
 		const Eigen::Vector3f c = T * centroid(v);
 		const uint64_t k = keyOf(c);
-		moved.push_back({k, (c - centreOf(k)) * float(v.count), v.count});
+		moved.push_back({k, (c - centreOf(k)) * float(v.count),
+		                 T.linear() * v.dir, v.count});
 	}
 	voxels_.clear();
 	mergeIn(moved);
@@ -94,6 +95,7 @@ void TreeLayer::SortedVoxels::mergeIn(std::vector<Voxel>& add)
 		if (!merged.empty() && merged.back().key == v.key)
 		{
 			merged.back().sum += v.sum;
+			merged.back().dir += v.dir;
 			merged.back().count += v.count;
 		}
 		else
@@ -169,7 +171,10 @@ void TreeLayer::addScan(const std::vector<Eigen::Vector3f>& pts,
 		const float h = pts[i].z() - low->z();
 		if (h < o_.layer_min_hag_m || h > o_.layer_max_hag_m) continue;
 		col->dirty = true;
-		col->stem.add(pts[i]);
+		const Eigen::Vector3f d = pts[i] - sensor.cast<float>();
+		const float n = d.norm();
+		col->stem.add(pts[i],
+		              n > 0 ? Eigen::Vector3f(d / n) : Eigen::Vector3f::Zero());
 	}
 	stats_.stored_voxels = 0;
 	for (auto& [k, c] : cols_)
@@ -224,6 +229,7 @@ void TreeLayer::detectColumn(const ColumnKey& k, const map::CForestMap& map)
 		       y < y0 + column_m_ + m;
 	};
 	std::vector<Eigen::Vector3d> pts, ground;
+	std::vector<Eigen::Vector3f> dirs;  // per point of pts; 0: unknown
 	for (int dx = -1; dx <= 1; dx++)
 		for (int dy = -1; dy <= 1; dy++)
 		{
@@ -234,10 +240,10 @@ void TreeLayer::detectColumn(const ColumnKey& k, const map::CForestMap& map)
 					ground.push_back(p.cast<double>());
 			it->second.stem.compact();
 			it->second.stem.forEach(
-			    [&](const Eigen::Vector3f& c)
+			    [&](const Eigen::Vector3f& c, const Eigen::Vector3f& d)
 			    {
 				    if (inside(c.x(), c.y(), margin))
-					    pts.push_back(c.cast<double>());
+					    pts.push_back(c.cast<double>()), dirs.push_back(d);
 			    });
 		}
 	std::vector<map::TreeRecord> found;
@@ -259,9 +265,10 @@ void TreeLayer::detectColumn(const ColumnKey& k, const map::CForestMap& map)
 			if (inside(c.x(), c.y(), margin))
 			{
 				const Eigen::Vector3d p = c.cast<double>();
-				if (dtm.heightAboveGround(p) > band_top) pts.push_back(p);
+				if (dtm.heightAboveGround(p) > band_top)
+					pts.push_back(p), dirs.push_back(Eigen::Vector3f::Zero());
 			}
-		for (const auto& t : detectTrees(pts, dtm, o_))
+		for (const auto& t : detectTrees(pts, dtm, o_, nullptr, &dirs))
 			if (t.record.x >= x0 && t.record.x < x0 + column_m_ &&
 			    t.record.y >= y0 && t.record.y < y0 + column_m_)
 				found.push_back(t.record);
@@ -357,7 +364,8 @@ std::vector<Eigen::Vector3f> TreeLayer::stemPoints(const ColumnKey& k) const
 	if (it == cols_.end()) return out;
 	auto& stem = const_cast<SortedVoxels&>(it->second.stem);
 	stem.compact();
-	stem.forEach([&](const Eigen::Vector3f& c) { out.push_back(c); });
+	stem.forEach([&](const Eigen::Vector3f& c, const Eigen::Vector3f&)
+	             { out.push_back(c); });
 	return out;
 }
 

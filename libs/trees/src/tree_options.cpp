@@ -10,10 +10,11 @@ namespace forest_slam::trees
 #define FS_TREES_FIELDS(X)                                                     \
 	X(dtm_cell_m)                                                              \
 	X(dtm_window_cells)                                                        \
-	X(dtm_max_step_m) X(slice_min_m) X(slice_max_m) X(slice_step_m)            \
-	    X(slice_thickness_m) X(kmeans_branching) X(kmeans_leaf_points) X(      \
-	        link_distance_m) X(min_slice_points) X(min_dbh_m) X(max_dbh_m)     \
-	        X(section_max_rmse_m) X(section_rmse_rel) X(section_min_arc_deg)   \
+	X(dtm_max_step_m)                                                          \
+	X(slice_min_m) X(slice_max_m) X(slice_step_m) X(slice_thickness_m)         \
+	    X(kmeans_branching) X(kmeans_leaf_points) X(link_distance_m) X(        \
+	        min_slice_points) X(min_dbh_m) X(max_dbh_m) X(section_max_rmse_m)  \
+	        X(section_rmse_rel) X(section_min_arc_deg)                         \
 	            X(section_min_inlier_ratio) X(max_centre_step_m) X(            \
 	                max_radius_ratio) X(max_slice_gap) X(min_slices)           \
 	                X(max_lean_deg) X(max_taper_m_per_m) X(max_axis_rmse_m) X( \
@@ -28,7 +29,8 @@ namespace forest_slam::trees
 	                                        X(layer_max_range_m)               \
 	                                            X(layer_complete_distance_m)   \
 	                                                X(layer_margin_m)          \
-	                                                    X(slice_cell_m)
+	                                                    X(slice_cell_m)        \
+	                                                        X(dbh_along_rays)
 
 void TreeOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
                                      const std::string& s)

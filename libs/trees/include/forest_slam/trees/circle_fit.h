@@ -60,6 +60,20 @@ CircleFitResult fitCircleRobust(const Points2D& p, const CircleFitOptions& o);
 CircleFitResult evaluateCircle(const Points2D& p, const Circle& c,
                                const CircleFitOptions& o);
 
+/** Geometric fit for range noise along the rays (lidar): the residual of
+ * point p_i seen along the unit direction d_i (sensor → point, in the plane
+ * of the circle) is the signed distance t_i along the ray from the circle's
+ * near surface to the point. For the true circle t_i is exactly the range
+ * error, so the estimate stays unbiased where orthogonal distances are not:
+ * near the silhouette range noise moves points along the tangent, always
+ * outwards, and a free-centre orthogonal fit of a one-sided arc comes out
+ * several mm small (r = 10 cm, σ = 2.5 cm). Rays that miss the circle get
+ * zero weight. Gauss–Newton / Levenberg–Marquardt with Tukey-biweight IRLS
+ * and MAD scale (as refineCircleGeometric), started from `c`. Returns false
+ * if fewer than 3 rays hit or the fit diverges. */
+bool refineCircleAlongRays(const Points2D& p, const Points2D& dir, Circle& c,
+                           double min_scale_m = 0.002, int max_iterations = 50);
+
 /** Degrees of the circle seen by `p`: bins of `bin_deg` holding a point
  * within `max_residual_m` of the circle. */
 double arcCoverageDeg(const Points2D& p, const Circle& c, double max_residual_m,

@@ -55,11 +55,14 @@ struct TreeDetectionStats
 	       rejected_duplicate = 0;
 };
 
-/** Trees in `pts`, ids 1..N ordered by x then y. */
-std::vector<DetectedTree> detectTrees(const std::vector<Eigen::Vector3d>& pts,
-                                      const TerrainModel& terrain,
-                                      const TreeOptions& o,
-                                      TreeDetectionStats* stats = nullptr);
+/** Trees in `pts`, ids 1..N ordered by x then y. `view_dirs` (optional,
+ * one per point): the mean viewing direction (sensor → point) of each
+ * point, zero if unknown; where known, the DBH circle is refined with the
+ * range noise along the rays (refineCircleAlongRays). */
+std::vector<DetectedTree> detectTrees(
+    const std::vector<Eigen::Vector3d>& pts, const TerrainModel& terrain,
+    const TreeOptions& o, TreeDetectionStats* stats = nullptr,
+    const std::vector<Eigen::Vector3f>* view_dirs = nullptr);
 
 /** Stem sections of one slice (exposed for tests and diagnostics). */
 std::vector<StemSection> findSliceSections(const Points2D& slice_xy,

@@ -81,20 +81,27 @@ class TreeLayer
 	/** Stem-band voxels (exact centroids, like map::VoxelCloud) as a sorted
 	 * array: scans are appended to a buffer that is merged in by sorting
 	 * when it grows, so a scan costs a push_back per point instead of a
-	 * hash lookup into millions of voxels. */
+	 * hash lookup into millions of voxels. Each voxel also sums the unit
+	 * viewing directions (sensor → point) of its points: the DBH fit models
+	 * the range noise along the rays (refineCircleAlongRays). */
 	class SortedVoxels
 	{
 	   public:
 		explicit SortedVoxels(double voxel_m = 0.02) : voxel_m_(voxel_m) {}
-		void add(const Eigen::Vector3f& p) { pending_.push_back(p); }
+		void add(const Eigen::Vector3f& p, const Eigen::Vector3f& dir)
+		{
+			pending_.push_back({p, dir});
+		}
 		/** Merges the buffer if it holds more than `max_pending` points. */
 		void compact(size_t max_pending = 0);
 		size_t size() const { return voxels_.size() + pending_.size(); }
-		/** Calls f(centroid) for every voxel (compact() first). */
+		/** Calls f(centroid, mean viewing direction, not normalised) for
+		 * every voxel (compact() first). */
 		template <class F>
 		void forEach(F&& f) const
 		{
-			for (const auto& v : voxels_) f(centroid(v));
+			for (const auto& v : voxels_)
+				f(centroid(v), Eigen::Vector3f(v.dir / float(v.count)));
 		}
 		void transform(const Eigen::Isometry3f& T);
 
@@ -103,11 +110,16 @@ class TreeLayer
 		{
 			uint64_t key;
 			Eigen::Vector3f sum;  ///< of offsets from the voxel centre
+			Eigen::Vector3f dir;  ///< sum of unit viewing directions
 			uint32_t count;
+		};
+		struct Pending
+		{
+			Eigen::Vector3f p, dir;
 		};
 		double voxel_m_;
 		std::vector<Voxel> voxels_;  ///< sorted by key
-		std::vector<Eigen::Vector3f> pending_;
+		std::vector<Pending> pending_;
 		uint64_t keyOf(const Eigen::Vector3f& p) const;
 		/** Sorts `add` and merges it into voxels_ (equal keys summed). */
 		void mergeIn(std::vector<Voxel>& add);

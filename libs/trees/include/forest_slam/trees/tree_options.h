@@ -49,10 +49,13 @@ struct TreeOptions : public mrpt::config::CLoadableOptions
 
 	// DBH (§4.2): band above local ground, SOR, robust circle fit.
 	double dbh_height_m = 1.3;
-	double dbh_band_half_m = 0.1;  ///< 1.2–1.4 m
+	double dbh_band_half_m = 0.3;  ///< 1.0–1.6 m (paper: 0.1)
 	int sor_k = 10;
 	double sor_omega = 0.4;
 	int min_dbh_points = 15;
+	/** Refine the DBH circle with range noise along the viewing rays where
+	 * they are known (the tree layer of a SLAM run). */
+	bool dbh_along_rays = true;
 	int ransac_iterations = 300;
 	double ransac_inlier_m = 0.015;
 	uint32_t seed = 1;
