@@ -11,11 +11,14 @@ void AttitudeOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 	FS_LOAD(c, s, kp);
 	FS_LOAD(c, s, ki);
 	FS_LOAD(c, s, accel_tolerance);
+	FS_LOAD(c, s, accel_lowpass_s);
 	FS_LOAD(c, s, gravity);
 	FS_LOAD(c, s, init_samples);
 	const std::string where = core::configOrigin(c) + ": [" + s + "] ";
 	if (!(kp >= 0) || !(ki >= 0))
 		throw core::ConfigError(where + "kp and ki must be >= 0");
+	if (!(accel_lowpass_s >= 0))
+		throw core::ConfigError(where + "accel_lowpass_s must be >= 0");
 	if (!(accel_tolerance > 0) || !(gravity > 0))
 		throw core::ConfigError(where +
 		                        "accel_tolerance and gravity must be > 0");
@@ -29,6 +32,7 @@ void AttitudeOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
 	c.write(s, "kp", kp);
 	c.write(s, "ki", ki);
 	c.write(s, "accel_tolerance", accel_tolerance);
+	c.write(s, "accel_lowpass_s", accel_lowpass_s);
 	c.write(s, "gravity", gravity);
 	c.write(s, "init_samples", init_samples);
 }
@@ -57,19 +61,32 @@ void AttitudeFilter::update(const Eigen::Vector3d& gyro,
 		// Level: the mean specific force is "up".
 		q_ = Eigen::Quaterniond::FromTwoVectors(init_sum_.normalized(),
 		                                        Eigen::Vector3d::UnitZ());
+		force_world_lp_ = q_ * (init_sum_ / init_n_);
 		initialised_ = true;
 		return;
 	}
 	Eigen::Vector3d w = gyro - bias_;
-	if (an > 1e-3)
+	if (acc.allFinite())
 	{
-		const Eigen::Vector3d up_est =
-		    q_.conjugate() * Eigen::Vector3d::UnitZ();
-		const Eigen::Vector3d e = (acc / an).cross(up_est);
-		const double k =
-		    std::abs(an - o_.gravity) < o_.accel_tolerance ? 1.0 : 0.1;
-		w += k * o_.kp * e;
-		bias_ -= k * o_.ki * e * dt;
+		// Low-pass the specific force in the world frame (see the header):
+		// its mean over a gait cycle is gravity, its direction per sample
+		// is not.
+		const double a = o_.accel_lowpass_s > 0
+		                     ? std::min(1.0, dt / o_.accel_lowpass_s)
+		                     : 1.0;
+		force_world_lp_ += a * (q_ * acc - force_world_lp_);
+		const double fn = force_world_lp_.norm();
+		if (fn > 1e-3)
+		{
+			// Error between the reference and "up", in the body frame.
+			const Eigen::Vector3d e =
+			    q_.conjugate() *
+			    (force_world_lp_ / fn).cross(Eigen::Vector3d::UnitZ());
+			const double k =
+			    std::abs(fn - o_.gravity) < o_.accel_tolerance ? 1.0 : 0.1;
+			w += k * o_.kp * e;
+			bias_ -= k * o_.ki * e * dt;
+		}
 	}
 	q_ = (q_ * expQ(w * dt)).normalized();
 }
