@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <random>
 #include <stdexcept>
 
 namespace forest_slam::trees
@@ -13,6 +14,7 @@ namespace forest_slam::trees
 namespace
 {
 constexpr size_t kSectionFitPoints = 300;
+constexpr size_t kRingSearchPoints = 400;
 
 CircleFitOptions fitOptions(const TreeOptions& o, double rmin, double rmax)
 {
@@ -76,6 +78,84 @@ struct Chain
 };
 }  // namespace
 
+/** RANSAC for a hollow ring inside a cluster of clutter: the second and
+ * third samples are taken near the first (the ring is a small part of the
+ * cluster), candidates are scored by the points on the ring minus twice
+ * those inside it (a stem's slice is hollow, a shrub's is not), the best is
+ * refined on its own points. Returns the fit on the ring's points
+ * (n_inliers of them), or !ok. */
+namespace
+{
+CircleFitResult findRing(const Points2D& p, const TreeOptions& o, double rmin,
+                         double rmax)
+{
+	CircleFitResult res;
+	if (p.size() < size_t(o.min_slice_points)) return res;
+	std::mt19937 rng(o.seed);
+	std::uniform_int_distribution<size_t> pick(0, p.size() - 1);
+	const double tol = o.ransac_inlier_m;
+	auto score = [&](const Circle& c, Points2D* ring)
+	{
+		long on = 0, inside = 0;
+		const double inner = c.radius_m - std::max(3 * tol, 0.3 * c.radius_m);
+		for (const auto& q : p)
+		{
+			const double d = (q - c.centre).norm();
+			if (std::abs(d - c.radius_m) <= 2 * tol)
+			{
+				on += std::abs(d - c.radius_m) <= tol;
+				if (ring) ring->push_back(q);
+			}
+			else if (d < inner)
+				inside++;
+		}
+		return std::make_pair(on - 2 * inside, inside);
+	};
+	Circle best;
+	long best_score = 0;
+	for (int it = 0; it < o.ransac_iterations; it++)
+	{
+		const size_t a = pick(rng);
+		size_t bc[2] = {a, a};
+		for (size_t& x : bc)
+			for (int t = 0; t < 20; t++)
+			{
+				const size_t y = pick(rng);
+				if (y != a && (p[y] - p[a]).norm() <= 2 * rmax)
+				{
+					x = y;
+					break;
+				}
+			}
+		if (bc[0] == a || bc[1] == a || bc[0] == bc[1]) continue;
+		Circle cand;
+		Points2D three = {p[a], p[bc[0]], p[bc[1]]};
+		// Kåsa through three points is the exact circle through them.
+		if (!fitCircleKasa(three, cand) || cand.radius_m < rmin ||
+		    cand.radius_m > rmax)
+			continue;
+		const long sc = score(cand, nullptr).first;
+		if (sc > best_score) best_score = sc, best = cand;
+	}
+	if (best_score < o.min_slice_points) return res;
+	Points2D ring;
+	score(best, &ring);
+	Circle c = best;
+	if (!refineCircleGeometric(ring, c) || c.radius_m < rmin ||
+	    c.radius_m > rmax)
+		return res;
+	Points2D ring2;
+	const auto [sc, inside] = score(c, &ring2);
+	if (sc < o.min_slice_points || double(inside) > 0.15 * ring2.size())
+		return res;
+	CircleFitOptions f;
+	f.min_radius_m = rmin;
+	f.max_radius_m = rmax;
+	f.arc_bin_deg = o.arc_bin_deg;
+	return evaluateCircle(ring2, c, f);
+}
+}  // namespace
+
 std::vector<StemSection> findSliceSections(const Points2D& xy, int slice_index,
                                            double height_m,
                                            const TreeOptions& o,
@@ -119,16 +199,37 @@ std::vector<StemSection> findSliceSections(const Points2D& xy, int slice_index,
 			if (j % stride == 0) pts.push_back(q);
 		}
 		// Walls and hedges: wider than any stem we accept.
-		if ((hi - lo).maxCoeff() > 1.5 * o.max_dbh_m) continue;
-		const auto f = fitCircleRobust(pts, fitOptions(o, rmin, rmax));
-		if (!f.ok) continue;
+		const bool narrow = (hi - lo).maxCoeff() <= 1.5 * o.max_dbh_m;
+		auto f = narrow ? fitCircleRobust(pts, fitOptions(o, rmin, rmax))
+		                : CircleFitResult{};
+		auto plausible = [&](const CircleFitResult& g, size_t n)
+		{
+			const double r = g.circle.radius_m;
+			return g.ok && r >= 0.5 * o.min_dbh_m * 0.8 &&
+			       r <= 0.5 * o.max_dbh_m &&
+			       g.rmse_m <= o.section_max_rmse_m + o.section_rmse_rel * r &&
+			       g.arc_coverage_deg >= o.section_min_arc_deg &&
+			       double(g.n_inliers) >=
+			           o.section_min_inlier_ratio * double(n);
+		};
+		if (!plausible(f, pts.size()))
+		{
+			// (A stem joined with clutter makes a big cluster: small ones
+			// are not searched, they cost most of the time.)
+			if (!o.section_ring_search ||
+			    c.size() < 3 * size_t(o.min_slice_points))
+				continue;
+			// Clutter touching a stem (low spruce branches, a shrub at its
+			// foot) joins it into one cluster that fails as a whole: look
+			// for a hollow ring inside it.
+			const size_t s2 =
+			    (c.size() + kRingSearchPoints - 1) / kRingSearchPoints;
+			Points2D all;
+			for (size_t j = 0; j < c.size(); j += s2) all.push_back(xy[c[j]]);
+			f = findRing(all, o, rmin, rmax);
+			if (!f.ok || !plausible(f, f.n_inliers)) continue;
+		}
 		const double r = f.circle.radius_m;
-		if (r < 0.5 * o.min_dbh_m * 0.8 || r > 0.5 * o.max_dbh_m) continue;
-		if (f.rmse_m > o.section_max_rmse_m + o.section_rmse_rel * r) continue;
-		if (f.arc_coverage_deg < o.section_min_arc_deg) continue;
-		if (double(f.n_inliers) <
-		    o.section_min_inlier_ratio * double(pts.size()))
-			continue;
 		StemSection s;
 		s.slice = slice_index;
 		s.height_m = height_m;

@@ -250,14 +250,18 @@ void TreeLayer::detectColumn(const ColumnKey& k, const map::CForestMap& map)
 	if (!ground.empty() && !pts.empty())
 	{
 		const TerrainModel dtm = buildDtm(ground, o_);
-		// Tree tops: the map's own voxels above the stem band.
+		// Tree tops: the map's own voxels above the stem band, from the
+		// submaps over this column only (their squares are the columns):
+		// gathering the neighbours' too, for the top of a stem within
+		// top_search_radius_m of the border, was a quarter of the detection
+		// time; such a top is searched on this column's side only.
 		const double band_top = o_.slice_max_m + 0.5 * o_.slice_thickness_m;
 		const int sx = int(std::floor(x0 / map.options().submap_size_m + 0.5));
 		const int sy = int(std::floor(y0 / map.options().submap_size_m + 0.5));
 		std::vector<Eigen::Vector3f> above;
 		for (const auto& [key, sm] : map.submaps())
 		{
-			if (std::abs(key.x - sx) > 1 || std::abs(key.y - sy) > 1) continue;
+			if (key.x != sx || key.y != sy) continue;
 			sm.edge.appendCentroids(above);
 			sm.planar.appendCentroids(above);
 		}

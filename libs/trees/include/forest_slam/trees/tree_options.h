@@ -36,6 +36,9 @@ struct TreeOptions : public mrpt::config::CLoadableOptions
 	double section_rmse_rel = 0.08;
 	double section_min_arc_deg = 60;
 	double section_min_inlier_ratio = 0.6;
+	/** A cluster failing as a section is searched for a hollow ring inside
+	 * it (stems joined with clutter: low spruce branches, shrubs). */
+	bool section_ring_search = true;
 
 	// Linking sections into stems: consistent centres, taper and lean.
 	double max_centre_step_m = 0.10;  ///< per metre of height, on top of lean
