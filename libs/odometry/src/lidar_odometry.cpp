@@ -301,4 +301,11 @@ OdometryStep LidarOdometry::processScan(const core::ScanPoints& scan)
 	return step;
 }
 
+void LidarOdometry::applyCorrection(const Eigen::Isometry3d& C)
+{
+	last_pose_ = C * last_pose_;
+	initial_pose_ = C * initial_pose_;
+	local_map_.transform(C);
+}
+
 }  // namespace forest_slam::odometry

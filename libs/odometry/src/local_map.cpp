@@ -117,6 +117,18 @@ void LocalMap::insert(const std::vector<Eigen::Vector3f>& edges,
 		if (p.allFinite()) addPoint(edges_, ed2, p);
 }
 
+void LocalMap::transform(const Eigen::Isometry3d& T)
+{
+	const Eigen::Isometry3f Tf = T.cast<float>();
+	std::vector<Eigen::Vector3f> edges, planar;
+	for (const auto& [k, c] : edges_)
+		for (const auto& p : c.pts) edges.push_back(Tf * p);
+	for (const auto& [k, c] : planar_)
+		for (const auto& p : c.pts) planar.push_back(Tf * p);
+	clear();
+	insert(edges, planar);
+}
+
 void LocalMap::prune(const Eigen::Vector3d& centre)
 {
 	const double r2 = o_.radius_m * o_.radius_m;

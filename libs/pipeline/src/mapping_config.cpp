@@ -11,6 +11,7 @@ MappingConfig MappingConfig::load(core::TrackedConfig& cfg)
 	MappingConfig m;
 	m.pipeline.loadFromConfigFile(cfg, "pipeline");
 	m.forest_map.loadFromConfigFile(cfg, "forest_map");
+	m.loop.loadFromConfigFile(cfg, "loop");
 	m.trees.loadFromConfigFile(cfg, "trees");
 	m.odometry.odometry.loadFromConfigFile(cfg, "odometry");
 	m.odometry.registration.loadFromConfigFile(cfg, "registration");
@@ -49,6 +50,7 @@ std::string MappingConfig::dump() const
 	mrpt::config::CConfigFileMemory mem;
 	pipeline.saveToConfigFile(mem, "pipeline");
 	forest_map.saveToConfigFile(mem, "forest_map");
+	loop.saveToConfigFile(mem, "loop");
 	trees.saveToConfigFile(mem, "trees");
 	odometry.odometry.saveToConfigFile(mem, "odometry");
 	odometry.registration.saveToConfigFile(mem, "registration");

@@ -109,6 +109,51 @@ std::string stageTimesJson(const std::vector<odometry::ScanTiming>& t,
 	os << ", \"trees\": " << distributionJson(tree_ms) << "}";
 	return os.str();
 }
+
+/** Back-end figures for run_summary.json ("null" without a back-end). */
+std::string loopJson(const loop::BackEnd* b)
+{
+	if (!b) return "null";
+	const auto st = b->stats();
+	std::ostringstream os;
+	os << "{\"keyframes\": " << st.keyframes
+	   << ", \"candidates\": " << st.candidates
+	   << ", \"closures\": " << st.closures
+	   << ", \"optimisations\": " << st.optimisations
+	   << ", \"gnss_fixes\": " << st.gnss_fixes
+	   << ", \"gnss_outliers\": " << st.gnss_outliers
+	   << ", \"verify_ms\": " << st.verify_ms
+	   << ", \"optimise_ms\": " << st.optimise_ms;
+	if (const auto e = b->mapToEnu())
+		os << ", \"map_to_enu\": {\"yaw_deg\": " << e->yaw * 180 / M_PI
+		   << ", \"x_m\": " << e->t.x() << ", \"y_m\": " << e->t.y()
+		   << ", \"z_m\": " << e->t.z() << "}";
+	os << "}";
+	return os.str();
+}
+
+/** Every verified loop candidate: keyframe times, verdict, gates, and the
+ * measured relative pose (from^-1 to). */
+void writeLoopClosures(const loop::BackEnd& b, const std::string& path)
+{
+	const auto t = b.keyframeStamps();
+	core::writeFileAtomically(path, [&](std::ostream& os) {
+		os << "from_t_s,to_t_s,accepted,reason,overlap,rmse_m,chi2,"
+		      "travelled_m,x,y,z,qx,qy,qz,qw\n";
+		os << std::fixed;
+		os.precision(6);
+		for (const auto& c : b.closures())
+		{
+			const Eigen::Quaterniond q(c.T.linear());
+			os << t.at(c.from) << ',' << t.at(c.to) << ','
+			   << (c.accepted ? 1 : 0) << ',' << c.reason << ',' << c.overlap
+			   << ',' << c.rmse_m << ',' << c.chi2 << ',' << c.travelled_m
+			   << ',' << c.T.translation().x() << ',' << c.T.translation().y()
+			   << ',' << c.T.translation().z() << ',' << q.x() << ',' << q.y()
+			   << ',' << q.z() << ',' << q.w() << '\n';
+		}
+	});
+}
 }  // namespace
 
 namespace
@@ -331,6 +376,7 @@ std::vector<std::string> writeOutputs(
 		   << "  \"output_collect_ms_per_scan\": "
 		   << (col.scans() ? 1e3 * col.collectSeconds() / col.scans() : 0.0) << ",\n"
 		   << "  \"output_write_seconds\": " << out.seconds << ",\n"
+		   << "  \"loop\": " << loopJson(p.backEnd()) << ",\n"
 		   << "  \"keyframes\": " << out.keyframes << ",\n"
 		   << "  \"dense_points\": " << out.dense_points << ",\n"
 		   << "  \"peak_memory_mb\": " << outputs::peakMemoryMb() << ",\n"
@@ -340,6 +386,12 @@ std::vector<std::string> writeOutputs(
 		   << "}\n";
 	});
 	written.push_back(summary);
+	if (p.backEnd())
+	{
+		const std::string f = dir + "/loop_closures.csv";
+		writeLoopClosures(*p.backEnd(), f);
+		written.push_back(f);
+	}
 	return written;
 }
 

@@ -35,6 +35,7 @@ MappingPipeline::MappingPipeline(const MappingConfig& cfg,
 	if (cfg_.trees.layer_enabled)
 		tree_layer_ = std::make_unique<trees::TreeLayer>(
 			cfg_.trees, cfg_.forest_map.submap_size_m);
+	initBackEnd();
 }
 
 bool MappingPipeline::reachedScanLimit() const
@@ -102,8 +103,9 @@ void MappingPipeline::process(const mrpt::obs::CObservation::Ptr& obs)
 	else if (label == o.gnss_label &&
 	         std::dynamic_pointer_cast<mrpt::obs::CObservationGPS>(obs))
 	{
-		stats_.gnss++;  // consumed by the back-end (issue 8)
+		stats_.gnss++;
 		outputs_.addGnss(*obs);
+		backEndGnss(*obs);
 	}
 	else
 	{
@@ -188,6 +190,7 @@ void MappingPipeline::finish()
 {
 	drainPending(true);
 	finishTreeLayer();
+	finishBackEnd();  // moves the trees with the corrected trajectory
 }
 
 Eigen::Matrix3d MappingPipeline::levelledOrientation(
@@ -282,7 +285,8 @@ void MappingPipeline::runOdometry(PendingScan& s)
 			odometry_->setImu(&imu_buffer_,
 			                  s.sensor_pose.getRotationMatrix().asEigen());
 	}
-	const auto step = odometry_->processScan(s.pts);
+	auto step = odometry_->processScan(s.pts);
+	backEndScan(s, step.pose);
 	imu_buffer_.pruneBefore(s.pts.stamp_s - 1.0);
 	trajectory_.push_back(step.pose);
 	outputs_.addScan(s.pts, step.pose, &odometry_->groundLattice());

@@ -117,6 +117,15 @@ TreeLayer::TreeLayer(const TreeOptions& o, double column_size_m)
 {
 }
 
+std::vector<ColumnKey> TreeLayer::columns() const
+{
+	std::vector<ColumnKey> out;
+	for (const auto& [k, c] : cols_) out.push_back(k);
+	std::sort(out.begin(), out.end(), [](const ColumnKey& a, const ColumnKey& b)
+	          { return a.x != b.x ? a.x < b.x : a.y < b.y; });
+	return out;
+}
+
 ColumnKey TreeLayer::columnOf(double x, double y) const
 {
 	return {int32_t(std::floor(x / column_m_)),

@@ -116,6 +116,12 @@ class LidarOdometry
 
 	OdometryStep processScan(const core::ScanPoints& scan);
 
+	/** Back-end hook: the map frame estimate moved by `C` (a loop closure or
+	 * GNSS correction, p' = C p). The last pose and the local map follow,
+	 * so that drift does not re-accumulate; the velocity is relative and
+	 * unchanged. The CForestMap and the ground lattice are not moved. */
+	void applyCorrection(const Eigen::Isometry3d& C);
+
 	const ground::GroundLattice& groundLattice() const { return lattice_; }
 	size_t scansProcessed() const { return scans_; }
 

@@ -53,6 +53,9 @@ class LocalMap : public RegistrationTarget
 	            const std::vector<Eigen::Vector3f>& planar);
 	/** Drops voxels and cells farther than radius_m (xy) from `centre`. */
 	void prune(const Eigen::Vector3d& centre);
+	/** Moves the whole map rigidly (a loop correction of the map frame):
+	 * points are moved and re-hashed, the coarse voxels rebuilt from them. */
+	void transform(const Eigen::Isometry3d& T);
 	void clear()
 	{
 		planar_.clear();

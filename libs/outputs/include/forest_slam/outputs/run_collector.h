@@ -75,6 +75,11 @@ class RunCollector
 	void addGnss(const mrpt::obs::CObservation& obs);
 
 	const Keyframes& keyframes() const { return keyframes_; }
+	/** Loop correction: the keyframe's sensor pose after the back-end. */
+	void setKeyframePose(size_t i, const Eigen::Isometry3d& T)
+	{
+		keyframes_.at(i).sensor_pose = T;
+	}
 	const DenseMap& dense() const { return dense_; }
 	const std::vector<GnssEpoch>& gnss() const { return gnss_; }
 	const ground::GroundLattice* groundLattice() const { return lattice_; }

@@ -2,6 +2,7 @@
 // Every module's options for one mapping run, loaded from one INI file. An
 // INI key that no module reads is an error (core::TrackedConfig).
 #include <forest_slam/core/config.h>
+#include <forest_slam/loop/loop_options.h>
 #include <forest_slam/map/forest_map.h>
 #include <forest_slam/pipeline/pipeline_options.h>
 #include <forest_slam/odometry/lidar_odometry.h>
@@ -19,6 +20,7 @@ struct MappingConfig
 	map::ForestMapOptions forest_map;  ///< [forest_map]
 	/** [odometry] [registration] [ground] [cluster] [features] */
 	odometry::OdometryConfig odometry;
+	loop::LoopOptions loop;            ///< [loop]
 	trees::TreeOptions trees;		   ///< [trees]
 	outputs::OutputOptions outputs;	 ///< [outputs]
 	outputs::GeoOptions georeference;  ///< [georeference]

@@ -4,6 +4,7 @@
 //   lidar scan -> unpack (core) -> pose at every firing (pose source) ->
 //   smoothness split edge/planar (map) -> deskew + insert into CForestMap.
 #include <forest_slam/core/trajectory.h>
+#include <forest_slam/loop/back_end.h>
 #include <forest_slam/map/forest_map.h>
 #include <forest_slam/outputs/run_collector.h>
 #include <forest_slam/pipeline/mapping_config.h>
@@ -76,6 +77,9 @@ class MappingPipeline
 	/** Call once at the end of a run, before writing outputs. */
 	void finishOutputs() { outputs_.finish(); }
 	bool reachedScanLimit() const;
+	/** nullptr unless [loop] enabled (odometry pose source); final after
+	 * finish(). */
+	const loop::BackEnd* backEnd() const { return backend_.get(); }
 	/** nullptr when [trees] layer_enabled = false. */
 	const trees::TreeLayer* treeLayer() const { return tree_layer_.get(); }
 
@@ -151,6 +155,34 @@ class MappingPipeline
 	/** Lidar pose in the map frame at absolute time t (--poses files hold
 	 * lidar poses, like our own trajectory.tum, so they can be fed back). */
 	bool lidarPoseAt(double t_s, Eigen::Isometry3d& out) const;
+
+	// Back-end hook (back_end_hook.cpp): keyframes to loop::BackEnd, its
+	// corrections applied at deterministic keyframes, GNSS fixes, drift
+	// injection for the test bench; at the end every scan pose follows its
+	// keyframe.
+	std::unique_ptr<loop::BackEnd> backend_;
+	struct ScanAnchor
+	{
+		size_t keyframe;
+		Eigen::Isometry3d offset;  ///< keyframe^-1 scan, same frame
+	};
+	std::vector<ScanAnchor, Eigen::aligned_allocator<ScanAnchor>> anchors_;
+	loop::Poses kf_pose_;  ///< keyframe poses in the current map frame
+	double travelled_m_ = 0, next_inject_m_ = 0;
+	std::optional<core::StampedPose> last_scan_pose_;
+	struct PendingFix
+	{
+		double t_s;
+		Eigen::Vector3d enu, sigma, antenna_on_vehicle;
+	};
+	std::deque<PendingFix> gnss_pending_;
+	struct GnssOrigin;
+	std::shared_ptr<GnssOrigin> gnss_origin_;
+	void initBackEnd();
+	/** After the odometry posed scan `s`: may move `pose` (correction). */
+	void backEndScan(const PendingScan& s, core::StampedPose& pose);
+	void backEndGnss(const mrpt::obs::CObservation& obs);
+	void finishBackEnd();
 
    public:
 	/** Levels a lidar orientation: R_level aligns the measured specific

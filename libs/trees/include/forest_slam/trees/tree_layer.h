@@ -73,6 +73,9 @@ class TreeLayer
 	                     map::CForestMap& map);
 
 	ColumnKey columnOf(double x, double y) const;
+	/** Every column holding points, sorted (deterministic order). */
+	std::vector<ColumnKey> columns() const;
+	double columnSize() const { return column_m_; }
 	/** Stem-band points of a column (voxel centroids), for diagnostics. */
 	std::vector<Eigen::Vector3f> stemPoints(const ColumnKey& k) const;
 	const TreeLayerStats& stats() const { return stats_; }

@@ -1,0 +1,100 @@
+#pragma once
+// The back-end: keyframes in, loop closures and pose-graph optimisation on
+// a worker thread, corrected keyframe poses out.
+//
+// Determinism: the pipeline hands in keyframes and GNSS fixes in data
+// order; the worker processes them in that order. The result of keyframe k
+// (the optimised poses, when that keyframe triggered a closure or GNSS
+// update) is collected by the pipeline when it makes keyframe
+// k + latency_keyframes (resultAt waits if the worker is behind). So the
+// worker runs in parallel with the odometry while the trajectory does not
+// depend on thread timing.
+#include <forest_slam/loop/loop_detector.h>
+#include <forest_slam/loop/loop_options.h>
+#include <forest_slam/loop/pose_graph.h>
+
+#include <condition_variable>
+#include <deque>
+#include <map>
+#include <mutex>
+#include <optional>
+#include <thread>
+
+namespace forest_slam::loop
+{
+struct GnssFix
+{
+	double stamp_s = 0;
+	size_t keyframe = 0;  ///< latest keyframe made before the fix
+	Eigen::Vector3d antenna_in_keyframe = Eigen::Vector3d::Zero();
+	Eigen::Vector3d enu = Eigen::Vector3d::Zero();
+	Eigen::Vector3d sigma = Eigen::Vector3d::Ones();
+};
+
+struct BackEndStats
+{
+	size_t keyframes = 0, candidates = 0, closures = 0, optimisations = 0;
+	size_t gnss_fixes = 0, gnss_outliers = 0;
+	double verify_ms = 0, optimise_ms = 0;  ///< worker CPU-side totals
+};
+
+class BackEnd
+{
+   public:
+	/** `threaded` false: everything runs in the caller (tests, debugging);
+	 * the results are the same. */
+	explicit BackEnd(const LoopOptions& o, bool threaded = true);
+	~BackEnd();
+	BackEnd(const BackEnd&) = delete;
+	BackEnd& operator=(const BackEnd&) = delete;
+
+	/** Pipeline thread. `kf.odom_edge` must be set (identity for the
+	 * first); returns the keyframe id. */
+	size_t addKeyframe(Keyframe kf);
+	void addGnss(const GnssFix& f);
+	/** Waits until keyframe `id` is processed; true with the optimised
+	 * poses of keyframes 0..id if processing it changed the graph. */
+	bool resultAt(size_t id, Poses& out);
+	/** Processes everything queued, then a final optimisation; afterwards
+	 * poses(), closures() and stats() are final. */
+	void finish();
+
+	Poses poses() const;
+	/** Keyframe reference times (the scans they were made at). */
+	std::vector<double> keyframeStamps() const;
+	std::vector<Closure> closures() const;
+	BackEndStats stats() const;
+	std::optional<MapToEnu> mapToEnu() const;
+
+   private:
+	struct Item
+	{
+		std::optional<Keyframe> kf;
+		std::optional<GnssFix> gnss;
+	};
+	void run();
+	void process(Item& it);
+	void processKeyframe(Keyframe& kf);
+	bool optimise();
+
+	LoopOptions o_;
+	bool threaded_;
+	// Queue and results (shared, under mutex_).
+	mutable std::mutex mutex_;
+	std::condition_variable cv_;
+	std::deque<Item> queue_;
+	std::map<size_t, Poses> results_;
+	long processed_ = -1;  ///< last keyframe processed
+	bool stop_ = false;
+	size_t next_id_ = 0;
+	std::thread worker_;
+	// Worker state (only the worker touches it until finish()).
+	std::vector<Keyframe> kfs_;
+	PoseGraph graph_;
+	std::vector<Closure> closures_;
+	BackEndStats stats_;
+	size_t next_attempt_ = 0;
+	size_t gnss_since_opt_ = 0;
+};
+
+}  // namespace forest_slam::loop

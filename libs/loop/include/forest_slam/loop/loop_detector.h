@@ -1,0 +1,64 @@
+#pragma once
+// Loop candidates and their verification.
+//  - candidates: keyframes at least min_travel_m back along the path whose
+//    current estimate lies within a radius of the current keyframe; the
+//    radius grows with the distance travelled since (odometry drift);
+//  - verification: point-to-plane ICP of the current submap (the keyframe
+//    and its predecessors) onto the candidate's submap (its neighbours on
+//    both sides), then gates: overlap, inlier RMSE, information (no
+//    corridor-like degeneracy), consistency of the correction with the
+//    drift the odometry can have accumulated (Mahalanobis, chi-square 6
+//    dof), and uniqueness: ICP started from guesses displaced by a few
+//    metres must not find another alignment as good (regular plantations,
+//    trails that look the same along their length).
+#include <forest_slam/loop/icp.h>
+#include <forest_slam/loop/loop_options.h>
+
+#include <Eigen/Geometry>
+#include <string>
+#include <vector>
+
+namespace forest_slam::loop
+{
+struct Keyframe
+{
+	size_t id = 0;
+	double stamp_s = 0;
+	double travelled_m = 0;  ///< path length from the start
+	/** Odometry pose relative to the previous keyframe (identity first). */
+	Eigen::Isometry3d odom_edge = Eigen::Isometry3d::Identity();
+	std::vector<Eigen::Vector3f> cloud;  ///< keyframe sensor frame
+	EIGEN_MAKE_ALIGNED_OPERATOR_NEW
+};
+
+struct Closure
+{
+	size_t from = 0;  ///< the older (candidate) keyframe
+	size_t to = 0;    ///< the current keyframe
+	Eigen::Isometry3d T = Eigen::Isometry3d::Identity();  ///< from^-1 to
+	double overlap = 0, rmse_m = 0, chi2 = 0, travelled_m = 0;
+	bool accepted = false;
+	std::string reason;  ///< why rejected ("" when accepted)
+	EIGEN_MAKE_ALIGNED_OPERATOR_NEW
+};
+
+using Poses =
+    std::vector<Eigen::Isometry3d, Eigen::aligned_allocator<Eigen::Isometry3d>>;
+
+/** Candidate keyframes for `current`, nearest first (estimates in `poses`,
+ * one per keyframe). */
+std::vector<size_t> loopCandidates(const std::vector<Keyframe>& kfs,
+                                   const Poses& poses, size_t current,
+                                   const LoopOptions& o);
+
+/** Points of keyframes [first, last] in the frame of keyframe `ref`. */
+std::vector<Eigen::Vector3f> submapCloud(const std::vector<Keyframe>& kfs,
+                                         const Poses& poses, size_t first,
+                                         size_t last, size_t ref,
+                                         double voxel_m);
+
+/** Verifies a closure between keyframes `from` (older) and `to`. */
+Closure verifyClosure(const std::vector<Keyframe>& kfs, const Poses& poses,
+                      size_t from, size_t to, const LoopOptions& o);
+
+}  // namespace forest_slam::loop

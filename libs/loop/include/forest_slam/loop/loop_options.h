@@ -1,0 +1,74 @@
+#pragma once
+// [loop]: keyframes, loop detection and verification, pose graph, GNSS
+// factors, and the test-bench drift injection (doc/backend.md lists every
+// key with its reason).
+#include <mrpt/config/CLoadableOptions.h>
+
+#include <string>
+
+namespace forest_slam::loop
+{
+struct LoopOptions : public mrpt::config::CLoadableOptions
+{
+	bool enabled = false;
+	// Keyframes.
+	double keyframe_distance_m = 1.0;
+	double keyframe_angle_deg = 15.0;
+	double cloud_voxel_m = 0.25;      ///< keyframe cloud voxel filter
+	double cloud_max_range_m = 40.0;  ///< keyframe cloud range limit
+	// Detection.
+	double min_travel_m = 30.0;  ///< candidates: at least this far back
+	double search_radius_m = 6.0;
+	/** The search radius grows by this fraction of the distance travelled
+	 * between the candidate and the current keyframe (odometry drift). */
+	double search_drift_fraction = 0.03;
+	int max_candidates = 2;  ///< nearest candidates verified per attempt
+	int detect_every_keyframes = 3;
+	/** After an accepted closure, the next attempt waits this many
+	 * keyframes (a closure every few metres is plenty). */
+	int closure_spacing_keyframes = 5;
+	int submap_keyframes = 8;  ///< keyframes each side in the ICP clouds
+	// Verification (point-to-plane ICP with a Cauchy kernel).
+	int icp_iterations = 50;
+	double icp_start_distance_m = 1.5;  ///< correspondence gate, first round
+	double icp_final_distance_m = 0.4;  ///< correspondence gate, last round
+	double min_overlap = 0.55;          ///< fraction of source points matched
+	double max_rmse_m = 0.12;           ///< point-to-plane RMSE of inliers
+	/** Information of the weakest direction / matches (each match adds at
+	 * most 1): below, the alignment is degenerate (corridor, open field). */
+	double min_information_ratio = 0.003;
+	/** Mahalanobis gate (chi-square, 6 dof) of the closure's correction
+	 * against the drift the odometry can have accumulated. */
+	double consistency_chi2 = 16.8;
+	// Pose graph noise.
+	double odom_sigma_t_m = 0.01;         ///< per edge
+	double odom_sigma_t_per_m = 0.02;     ///< per metre of the edge
+	double odom_sigma_r_deg = 0.05;       ///< per edge
+	double odom_sigma_r_deg_per_m = 0.1;  ///< per metre of the edge
+	double loop_sigma_t_m = 0.03;
+	double loop_sigma_r_deg = 0.15;
+	/** Results of keyframe k are applied when keyframe k + this is made:
+	 * the worker runs meanwhile, and the run is deterministic. */
+	int latency_keyframes = 3;
+	// GNSS position factors.
+	bool gnss_enabled = false;
+	int gnss_min_quality = 1;
+	double gnss_max_sigma_m = 5.0;      ///< fixes worse than this are not used
+	double gnss_gate_sigma = 4.0;       ///< residual beyond: outlier, dropped
+	double gnss_min_baseline_m = 15.0;  ///< fixes must span this (heading)
+	// Test bench: odometry drift injected into the odometry (0 = off).
+	double inject_yaw_deg_per_m = 0;
+	double inject_z_m_per_m = 0;
+	double inject_every_m = 2.0;
+
+	void loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
+	                        const std::string& section) override;
+	void saveToConfigFile(mrpt::config::CConfigFileBase& c,
+	                      const std::string& section) const override;
+	bool injectsDrift() const
+	{
+		return inject_yaw_deg_per_m != 0 || inject_z_m_per_m != 0;
+	}
+};
+
+}  // namespace forest_slam::loop

@@ -1,0 +1,243 @@
+#include <forest_slam/core/log.h>
+#include <forest_slam/loop/back_end.h>
+
+#include <chrono>
+#include <cmath>
+
+namespace forest_slam::loop
+{
+namespace
+{
+double msSince(std::chrono::steady_clock::time_point t)
+{
+	return std::chrono::duration<double, std::milli>(
+	           std::chrono::steady_clock::now() - t)
+	    .count();
+}
+}  // namespace
+
+BackEnd::BackEnd(const LoopOptions& o, bool threaded)
+    : o_(o), threaded_(threaded)
+{
+	if (threaded_) worker_ = std::thread([this] { run(); });
+}
+
+BackEnd::~BackEnd()
+{
+	{
+		std::lock_guard<std::mutex> lk(mutex_);
+		stop_ = true;
+	}
+	cv_.notify_all();
+	if (worker_.joinable()) worker_.join();
+}
+
+size_t BackEnd::addKeyframe(Keyframe kf)
+{
+	Item it;
+	{
+		std::lock_guard<std::mutex> lk(mutex_);
+		kf.id = next_id_++;
+		it.kf = std::move(kf);
+		if (threaded_) queue_.push_back(std::move(it));
+	}
+	if (threaded_)
+		cv_.notify_all();
+	else
+		process(it);
+	return next_id_ - 1;
+}
+
+void BackEnd::addGnss(const GnssFix& f)
+{
+	Item it;
+	it.gnss = f;
+	if (!threaded_)
+	{
+		process(it);
+		return;
+	}
+	{
+		std::lock_guard<std::mutex> lk(mutex_);
+		queue_.push_back(std::move(it));
+	}
+	cv_.notify_all();
+}
+
+bool BackEnd::resultAt(size_t id, Poses& out)
+{
+	std::unique_lock<std::mutex> lk(mutex_);
+	cv_.wait(lk, [&] { return processed_ >= static_cast<long>(id); });
+	auto it = results_.find(id);
+	if (it == results_.end()) return false;
+	out = std::move(it->second);
+	results_.erase(results_.begin(), std::next(it));
+	return true;
+}
+
+void BackEnd::run()
+{
+	for (;;)
+	{
+		Item it;
+		{
+			std::unique_lock<std::mutex> lk(mutex_);
+			cv_.wait(lk, [&] { return stop_ || !queue_.empty(); });
+			if (queue_.empty()) return;  // stop requested, nothing left
+			it = std::move(queue_.front());
+			queue_.pop_front();
+		}
+		process(it);
+	}
+}
+
+void BackEnd::process(Item& it)
+{
+	if (it.gnss)
+	{
+		const auto& f = *it.gnss;
+		if (f.keyframe < graph_.size())
+		{
+			GnssFactor g;
+			g.node = f.keyframe;
+			g.antenna_in_node = f.antenna_in_keyframe;
+			g.enu = f.enu;
+			g.sigma = f.sigma;
+			graph_.addGnss(g);
+			stats_.gnss_fixes++;
+			gnss_since_opt_++;
+		}
+		return;
+	}
+	Keyframe& kf = *it.kf;
+	const size_t id = kf.id;
+	processKeyframe(kf);
+	std::lock_guard<std::mutex> lk(mutex_);
+	processed_ = static_cast<long>(id);
+	cv_.notify_all();
+}
+
+void BackEnd::processKeyframe(Keyframe& kf)
+{
+	const size_t id = kf.id;
+	const double travel_edge =
+	    kf.odom_edge.translation().norm();  // for the edge noise
+	graph_.addNode(id == 0 ? Eigen::Isometry3d::Identity() * kf.odom_edge
+	                       : graph_.pose(id - 1) * kf.odom_edge);
+	if (id > 0)
+	{
+		RelativeFactor f;
+		f.a = id - 1;
+		f.b = id;
+		f.T_ab = kf.odom_edge;
+		f.sqrt_information = sqrtInformation(
+		    o_.odom_sigma_t_m + o_.odom_sigma_t_per_m * travel_edge,
+		    (o_.odom_sigma_r_deg + o_.odom_sigma_r_deg_per_m * travel_edge) *
+		        M_PI / 180);
+		graph_.addFactor(f);
+	}
+	kfs_.push_back(std::move(kf));
+	stats_.keyframes++;
+
+	bool changed = false;
+	if (id >= next_attempt_ &&
+	    id % static_cast<size_t>(o_.detect_every_keyframes) == 0)
+	{
+		Poses poses(graph_.size());
+		for (size_t i = 0; i < graph_.size(); i++) poses[i] = graph_.pose(i);
+		const auto t = std::chrono::steady_clock::now();
+		for (size_t j : loopCandidates(kfs_, poses, id, o_))
+		{
+			stats_.candidates++;
+			Closure c = verifyClosure(kfs_, poses, j, id, o_);
+			closures_.push_back(c);
+			FS_LOG_DEBUG("loop " << j << " -> " << id << ": "
+			                     << (c.accepted ? "accepted" : c.reason)
+			                     << " overlap " << c.overlap << " rmse "
+			                     << c.rmse_m << " chi2 " << c.chi2);
+			if (!c.accepted) continue;
+			RelativeFactor f;
+			f.a = j;
+			f.b = id;
+			f.T_ab = c.T;
+			f.sqrt_information = sqrtInformation(
+			    o_.loop_sigma_t_m, o_.loop_sigma_r_deg * M_PI / 180);
+			f.robust = false;  // verified hard; a kernel would ignore big drift
+			graph_.addFactor(f);
+			stats_.closures++;
+			changed = true;
+			next_attempt_ =
+			    id + static_cast<size_t>(o_.closure_spacing_keyframes);
+			break;
+		}
+		stats_.verify_ms += msSince(t);
+	}
+	// GNSS: re-optimise when fixes arrived (not at every keyframe).
+	if (gnss_since_opt_ > 0 &&
+	    id % static_cast<size_t>(o_.detect_every_keyframes) == 0)
+		changed = true;
+	if (changed && optimise())
+	{
+		Poses out(graph_.size());
+		for (size_t i = 0; i < graph_.size(); i++) out[i] = graph_.pose(i);
+		std::lock_guard<std::mutex> lk(mutex_);
+		results_[id] = std::move(out);
+	}
+}
+
+bool BackEnd::optimise()
+{
+	const auto t = std::chrono::steady_clock::now();
+	const bool ok = graph_.optimize(o_.gnss_min_baseline_m, o_.gnss_gate_sigma);
+	gnss_since_opt_ = 0;
+	stats_.optimisations++;
+	stats_.optimise_ms += msSince(t);
+	size_t outliers = 0;
+	for (const auto& g : graph_.gnss()) outliers += g.outlier;
+	stats_.gnss_outliers = outliers;
+	return ok;
+}
+
+void BackEnd::finish()
+{
+	if (threaded_)
+	{
+		{
+			std::lock_guard<std::mutex> lk(mutex_);
+			stop_ = true;
+		}
+		cv_.notify_all();
+		if (worker_.joinable()) worker_.join();
+	}
+	if (stats_.closures > 0 || !graph_.gnss().empty()) optimise();
+}
+
+Poses BackEnd::poses() const
+{
+	Poses out(graph_.size());
+	for (size_t i = 0; i < graph_.size(); i++) out[i] = graph_.pose(i);
+	return out;
+}
+
+std::vector<double> BackEnd::keyframeStamps() const
+{
+	std::vector<double> t;
+	for (const auto& k : kfs_) t.push_back(k.stamp_s);
+	return t;
+}
+
+std::vector<Closure> BackEnd::closures() const
+{
+	return closures_;
+}
+BackEndStats BackEnd::stats() const
+{
+	return stats_;
+}
+std::optional<MapToEnu> BackEnd::mapToEnu() const
+{
+	if (!graph_.hasEnu()) return std::nullopt;
+	return graph_.mapToEnu();
+}
+
+}  // namespace forest_slam::loop

@@ -1,0 +1,166 @@
+#include <forest_slam/loop/loop_detector.h>
+
+#include <algorithm>
+#include <cmath>
+
+namespace forest_slam::loop
+{
+std::vector<size_t> loopCandidates(const std::vector<Keyframe>& kfs,
+                                   const Poses& poses, size_t current,
+                                   const LoopOptions& o)
+{
+	const auto& cur = kfs[current];
+	const Eigen::Vector3d pc = poses[current].translation();
+	std::vector<std::pair<double, size_t>> near;
+	for (size_t j = 0; j < current; j++)
+	{
+		const double travel = cur.travelled_m - kfs[j].travelled_m;
+		if (travel < o.min_travel_m) break;  // travelled_m grows with j
+		const double radius =
+		    o.search_radius_m + o.search_drift_fraction * travel;
+		const Eigen::Vector3d d = poses[j].translation() - pc;
+		if (d.head<2>().norm() > radius || std::abs(d.z()) > radius) continue;
+		near.emplace_back(d.norm(), j);
+	}
+	std::sort(near.begin(), near.end());
+	// Keep candidates from different places along the path (not several
+	// neighbours of one keyframe, which would verify the same overlap).
+	std::vector<size_t> out;
+	for (const auto& [d, j] : near)
+	{
+		bool close = false;
+		for (size_t k : out)
+			if (std::abs(kfs[k].travelled_m - kfs[j].travelled_m) <
+			    2 * o.submap_keyframes * o.keyframe_distance_m)
+				close = true;
+		if (close) continue;
+		out.push_back(j);
+		if (out.size() >= static_cast<size_t>(o.max_candidates)) break;
+	}
+	return out;
+}
+
+std::vector<Eigen::Vector3f> submapCloud(const std::vector<Keyframe>& kfs,
+                                         const Poses& poses, size_t first,
+                                         size_t last, size_t ref,
+                                         double voxel_m)
+{
+	std::vector<Eigen::Vector3f> pts;
+	const Eigen::Isometry3d ref_inv = poses[ref].inverse();
+	for (size_t i = first; i <= last && i < kfs.size(); i++)
+	{
+		const Eigen::Isometry3f T = (ref_inv * poses[i]).cast<float>();
+		for (const auto& p : kfs[i].cloud) pts.push_back(T * p);
+	}
+	return voxelFilter(pts, voxel_m, 1e9);
+}
+
+namespace
+{
+/** Rotation vector and translation of A^-1 B. */
+Eigen::Matrix<double, 6, 1> difference(const Eigen::Isometry3d& A,
+                                       const Eigen::Isometry3d& B)
+{
+	const Eigen::Isometry3d D = A.inverse() * B;
+	const Eigen::AngleAxisd aa(D.linear());
+	Eigen::Matrix<double, 6, 1> v;
+	v.head<3>() = D.translation();
+	v.tail<3>() = aa.angle() * aa.axis();
+	return v;
+}
+}  // namespace
+
+Closure verifyClosure(const std::vector<Keyframe>& kfs, const Poses& poses,
+                      size_t from, size_t to, const LoopOptions& o)
+{
+	Closure c;
+	c.from = from;
+	c.to = to;
+	c.travelled_m = kfs[to].travelled_m - kfs[from].travelled_m;
+	const size_t m = static_cast<size_t>(o.submap_keyframes);
+	const size_t t_first = from >= m ? from - m : 0;
+	const size_t t_last = std::min(from + m, to - 1);
+	const size_t s_first = to >= m ? to - m : 0;
+	// Both submaps from the same resolution: the target with normals.
+	IcpTarget target(withNormals(
+	    submapCloud(kfs, poses, t_first, t_last, from, o.cloud_voxel_m)));
+	const auto source = submapCloud(kfs, poses, std::max(s_first, t_last + 1),
+	                                to, to, o.cloud_voxel_m);
+	if (target.size() < 200 || source.size() < 200)
+	{
+		c.reason = "too few points";
+		return c;
+	}
+	IcpOptions io;
+	io.iterations = o.icp_iterations;
+	io.start_distance_m = o.icp_start_distance_m;
+	io.final_distance_m = o.icp_final_distance_m;
+	const Eigen::Isometry3d guess = poses[from].inverse() * poses[to];
+	const IcpResult r = target.align(source, guess, io);
+	c.T = r.T;
+	c.overlap = r.overlap;
+	c.rmse_m = r.rmse_m;
+	if (!r.converged)
+	{
+		c.reason = "ICP did not converge";
+		return c;
+	}
+	if (r.overlap < o.min_overlap)
+	{
+		c.reason = "overlap";
+		return c;
+	}
+	if (r.rmse_m > o.max_rmse_m)
+	{
+		c.reason = "rmse";
+		return c;
+	}
+	const auto& ev = r.information_eigenvalues;
+	// A match adds at most 1 to a direction's information (unit normal;
+	// rotations scaled to a 10 m lever): the weakest direction must be
+	// constrained by a fair share of the matches (not a corridor).
+	if (!(ev[5] > 0) || ev[0] < o.min_information_ratio * r.matches)
+	{
+		c.reason = "degenerate";
+		return c;
+	}
+	// Consistency: the correction against the current estimate must be a
+	// drift the odometry can have made over the distance travelled.
+	const auto d = difference(guess, r.T);
+	const double st = o.loop_sigma_t_m + o.odom_sigma_t_per_m * c.travelled_m;
+	const double sr =
+	    (o.loop_sigma_r_deg + o.odom_sigma_r_deg_per_m * c.travelled_m) * M_PI /
+	    180;
+	c.chi2 = d.head<3>().squaredNorm() / (st * st) +
+	         d.tail<3>().squaredNorm() / (sr * sr);
+	if (c.chi2 > o.consistency_chi2)
+	{
+		c.reason = "inconsistent with odometry";
+		return c;
+	}
+	// Uniqueness: from guesses displaced horizontally (in the candidate's
+	// frame, where the ground is level), ICP must come back to the same
+	// alignment or find a clearly worse one.
+	const double shift = std::max(1.0, 1.5 * o.icp_start_distance_m);
+	for (int k = 0; k < 4; k++)
+	{
+		const double a = k * M_PI / 2;
+		Eigen::Isometry3d g = r.T;
+		g.translation() += shift * Eigen::Vector3d(std::cos(a), std::sin(a), 0);
+		const IcpResult alt = target.align(source, g, io);
+		if (!alt.converged) continue;
+		const auto dd = difference(r.T, alt.T);
+		const bool other =
+		    dd.head<3>().norm() > 0.3 || dd.tail<3>().norm() > 1.0 * M_PI / 180;
+		if (other && alt.overlap > 0.9 * r.overlap &&
+		    alt.rmse_m < 1.2 * r.rmse_m)
+		{
+			c.reason = "ambiguous";
+			return c;
+		}
+	}
+	c.accepted = true;
+	return c;
+}
+
+}  // namespace forest_slam::loop

@@ -1,0 +1,254 @@
+// The back-end's hook into the mapping pipeline (doc/backend.md): every
+// odometry pose may make a keyframe for loop::BackEnd; the back-end's
+// corrections are applied when keyframe k + latency_keyframes is made (the
+// same scans in every run, whatever the thread timing), to the odometry's
+// pose and local map so that drift does not re-accumulate; GNSS fixes are
+// attached to the keyframe before them; at the end every scan pose follows
+// its keyframe and the tree layer and the output keyframes follow.
+#include <forest_slam/core/log.h>
+#include <forest_slam/odometry/lidar_odometry.h>
+#include <forest_slam/pipeline/mapping_pipeline.h>
+
+#include <mrpt/obs/CObservationGPS.h>
+#include <mrpt/system/datetime.h>
+#include <GeographicLib/LocalCartesian.hpp>
+
+#include <cmath>
+
+namespace forest_slam::pipeline
+{
+struct MappingPipeline::GnssOrigin
+{
+	GeographicLib::LocalCartesian enu;
+};
+
+void MappingPipeline::initBackEnd()
+{
+	if (!cfg_.loop.enabled) return;
+	if (cfg_.pipeline.poseSource() != PoseSource::Odometry)
+	{
+		core::logOnce(core::LogLevel::Warn, "loop-pose-source",
+		              "[loop] enabled needs [pipeline] pose_source=odometry; "
+		              "the back-end is off for this run");
+		return;
+	}
+	backend_ = std::make_unique<loop::BackEnd>(cfg_.loop);
+}
+
+namespace
+{
+double angleDeg(const Eigen::Matrix3d& R)
+{
+	return Eigen::AngleAxisd(R).angle() * 180.0 / M_PI;
+}
+}  // namespace
+
+void MappingPipeline::backEndScan(const PendingScan& s, core::StampedPose& pose)
+{
+	if (!backend_) return;
+	const auto& lo = cfg_.loop;
+	if (last_scan_pose_)
+		travelled_m_ +=
+		    (pose.pose.translation() - last_scan_pose_->pose.translation())
+		        .norm();
+	// Test bench: a yaw and height error every inject_every_m, about the
+	// sensor, as a drifting odometry would make (the local map moves too,
+	// so the registration keeps it).
+	if (lo.injectsDrift() && travelled_m_ >= next_inject_m_)
+	{
+		if (next_inject_m_ > 0)
+		{
+			const double d = lo.inject_every_m;
+			Eigen::Isometry3d D = Eigen::Isometry3d::Identity();
+			D.linear() =
+			    Eigen::AngleAxisd(lo.inject_yaw_deg_per_m * d * M_PI / 180,
+			                      Eigen::Vector3d::UnitZ())
+			        .toRotationMatrix();
+			D.translation().z() = lo.inject_z_m_per_m * d;
+			Eigen::Isometry3d P = Eigen::Isometry3d::Identity();
+			P.translation() = pose.pose.translation();
+			const Eigen::Isometry3d C = P * D * P.inverse();
+			odometry_->applyCorrection(C);
+			pose.pose = C * pose.pose;
+		}
+		next_inject_m_ += lo.inject_every_m;
+	}
+
+	// Keyframe?
+	const bool first = kf_pose_.empty();
+	bool make = first;
+	if (!first)
+	{
+		const Eigen::Isometry3d d = kf_pose_.back().inverse() * pose.pose;
+		make = d.translation().norm() >= lo.keyframe_distance_m ||
+		       angleDeg(d.linear()) >= lo.keyframe_angle_deg;
+	}
+	if (make)
+	{
+		loop::Keyframe kf;
+		kf.stamp_s = pose.t_s;
+		kf.travelled_m = travelled_m_;
+		kf.odom_edge =
+		    first ? pose.pose : kf_pose_.back().inverse() * pose.pose;
+		// Deskewed cloud in the keyframe frame: the sweep's motion from the
+		// last scan (and the IMU rotation when there is one).
+		odometry::SweepMotion m;
+		m.t0_s = s.pts.stamp_s;
+		m.sweep_s = s.pts.sweep_s;
+		if (last_scan_pose_ && pose.t_s > last_scan_pose_->t_s)
+			m.end = core::interpolateIsometry(
+			    Eigen::Isometry3d::Identity(),
+			    last_scan_pose_->pose.inverse() * pose.pose,
+			    s.pts.sweep_s / (pose.t_s - last_scan_pose_->t_s));
+		if (cfg_.odometry.odometry.use_imu &&
+		    imu_buffer_.covers(s.pts.stamp_s, s.pts.stamp_s + s.pts.sweep_s))
+		{
+			m.imu = &imu_buffer_;
+			m.R_body_lidar = s.sensor_pose.getRotationMatrix().asEigen();
+		}
+		std::vector<Eigen::Vector3f> pts;
+		for (const auto& p : odometry::deskewScan(s.pts, m))
+			pts.push_back(p.xyz);
+		kf.cloud =
+		    loop::voxelFilter(pts, lo.cloud_voxel_m, lo.cloud_max_range_m);
+		const size_t id = backend_->addKeyframe(std::move(kf));
+		kf_pose_.push_back(pose.pose);
+		const size_t lat = static_cast<size_t>(lo.latency_keyframes);
+		loop::Poses X;
+		if (id >= lat && backend_->resultAt(id - lat, X))
+		{
+			// Correction of the map frame at the newest optimised
+			// keyframe; the keyframes made since move rigidly with it.
+			const size_t k = X.size() - 1;
+			const Eigen::Isometry3d C = X[k] * kf_pose_[k].inverse();
+			odometry_->applyCorrection(C);
+			for (auto& T : kf_pose_) T = C * T;
+			pose.pose = C * pose.pose;
+			if (last_scan_pose_)
+				last_scan_pose_->pose = C * last_scan_pose_->pose;
+			FS_LOG_DEBUG("back-end correction at keyframe "
+			             << id << ": " << C.translation().norm() << " m, "
+			             << angleDeg(C.linear()) << " deg");
+		}
+	}
+	anchors_.push_back(
+	    {kf_pose_.size() - 1, kf_pose_.back().inverse() * pose.pose});
+
+	// GNSS fixes taken before this scan: position at the fix time
+	// interpolated between the last two scan poses, attached to the newest
+	// keyframe.
+	while (!gnss_pending_.empty() && gnss_pending_.front().t_s <= pose.t_s)
+	{
+		const auto f = gnss_pending_.front();
+		gnss_pending_.pop_front();
+		if (!last_scan_pose_ || f.t_s < last_scan_pose_->t_s) continue;
+		const double a = (f.t_s - last_scan_pose_->t_s) /
+		                 std::max(1e-9, pose.t_s - last_scan_pose_->t_s);
+		const Eigen::Isometry3d T =
+		    core::interpolateIsometry(last_scan_pose_->pose, pose.pose, a);
+		const Eigen::Vector3d lever =
+		    s.sensor_pose.getRotationMatrix().asEigen().transpose() *
+		    (f.antenna_on_vehicle - Eigen::Vector3d(s.sensor_pose.x(),
+		                                            s.sensor_pose.y(),
+		                                            s.sensor_pose.z()));
+		loop::GnssFix g;
+		g.stamp_s = f.t_s;
+		g.keyframe = kf_pose_.size() - 1;
+		g.antenna_in_keyframe = kf_pose_.back().inverse() * (T * lever);
+		g.enu = f.enu;
+		g.sigma = f.sigma;
+		backend_->addGnss(g);
+	}
+	last_scan_pose_ = pose;
+}
+
+void MappingPipeline::backEndGnss(const mrpt::obs::CObservation& obs)
+{
+	if (!backend_ || !cfg_.loop.gnss_enabled) return;
+	const auto& gps = dynamic_cast<const mrpt::obs::CObservationGPS&>(obs);
+	if (!gps.has_GGA_datum()) return;
+	const auto& gga =
+	    gps.getMsgByClass<mrpt::obs::gnss::Message_NMEA_GGA>().fields;
+	if (gga.fix_quality < static_cast<unsigned>(cfg_.loop.gnss_min_quality))
+		return;
+	// Per-axis sigmas from BESTPOS (forest-sim, bag2rawlog from NavSatFix
+	// covariances); a fix without them is not used: its weight is unknown.
+	using mrpt::obs::gnss::Message_NV_OEM6_BESTPOS;
+	if (!gps.hasMsgClass<Message_NV_OEM6_BESTPOS>())
+	{
+		core::logOnce(core::LogLevel::Warn, "gnss-no-sigma",
+		              "GNSS observations without per-axis sigmas (BESTPOS): "
+		              "not used by the back-end");
+		return;
+	}
+	const auto& b = gps.getMsgByClass<Message_NV_OEM6_BESTPOS>().fields;
+	const Eigen::Vector3d sigma(b.lon_sigma, b.lat_sigma, b.hgt_sigma);
+	if (!(sigma.minCoeff() > 0) ||
+	    sigma.head<2>().maxCoeff() > cfg_.loop.gnss_max_sigma_m)
+		return;
+	if (!std::isfinite(gga.latitude_degrees) ||
+	    !std::isfinite(gga.longitude_degrees))
+		return;
+	if (!gnss_origin_)
+	{
+		gnss_origin_ = std::make_shared<GnssOrigin>();
+		gnss_origin_->enu.Reset(gga.latitude_degrees, gga.longitude_degrees,
+		                        gga.altitude_meters);
+	}
+	PendingFix f;
+	f.t_s = mrpt::Clock::toDouble(obs.timestamp);
+	gnss_origin_->enu.Forward(gga.latitude_degrees, gga.longitude_degrees,
+	                          gga.altitude_meters, f.enu.x(), f.enu.y(),
+	                          f.enu.z());
+	f.sigma = sigma;
+	f.antenna_on_vehicle = Eigen::Vector3d(
+	    gps.sensorPose.x(), gps.sensorPose.y(), gps.sensorPose.z());
+	gnss_pending_.push_back(f);
+}
+
+void MappingPipeline::finishBackEnd()
+{
+	if (!backend_) return;
+	backend_->finish();
+	const auto X = backend_->poses();
+	if (X.size() != kf_pose_.size() || anchors_.size() != trajectory_.size())
+		throw std::logic_error("back-end: keyframe/scan bookkeeping mismatch");
+	const core::Trajectory mapped = trajectory_;
+	for (size_t i = 0; i < trajectory_.size(); i++)
+		trajectory_[i].pose = X[anchors_[i].keyframe] * anchors_[i].offset;
+	// Output keyframes: their pose is a scan pose.
+	const auto& kfs = outputs_.keyframes();
+	for (size_t i = 0; i < kfs.size(); i++)
+	{
+		Eigen::Isometry3d T;
+		if (core::interpolatePose(trajectory_, kfs[i].t_s, T, 1e-6))
+			outputs_.setKeyframePose(i, T);
+	}
+	// Tree layer: each column moves with the correction of the scan that
+	// passed nearest to its centre (as mapped).
+	if (tree_layer_ && !mapped.empty())
+		for (const auto& k : tree_layer_->columns())
+		{
+			const double c = tree_layer_->columnSize();
+			const Eigen::Vector2d centre((k.x + 0.5) * c, (k.y + 0.5) * c);
+			size_t best = 0;
+			double bd = 1e300;
+			for (size_t i = 0; i < mapped.size(); i++)
+			{
+				const double d =
+				    (mapped[i].pose.translation().head<2>() - centre)
+				        .squaredNorm();
+				if (d < bd) bd = d, best = i;
+			}
+			tree_layer_->transformColumn(
+			    k, trajectory_[best].pose * mapped[best].pose.inverse(), map_);
+		}
+	const auto st = backend_->stats();
+	FS_LOG_INFO("back-end: " << st.keyframes << " keyframes, " << st.candidates
+	                         << " loop candidates, " << st.closures
+	                         << " closures, " << st.optimisations
+	                         << " optimisations, GNSS " << st.gnss_fixes
+	                         << " fixes (" << st.gnss_outliers << " outliers)");
+}
+
+}  // namespace forest_slam::pipeline

@@ -1,0 +1,50 @@
+#include "synthetic_forest.h"
+
+#include <forest_slam/loop/icp.h>
+#include <forest_slam/loop/keyframe_cloud.h>
+#include <gtest/gtest.h>
+
+using namespace forest_slam::loop;
+using namespace forest_slam::loop::test;
+
+namespace
+{
+double angleDeg(const Eigen::Matrix3d& R)
+{
+	return Eigen::AngleAxisd(R).angle() * 180 / M_PI;
+}
+}  // namespace
+
+TEST(Icp, RecoversAnOffsetBetweenTwoViews)
+{
+	const auto stems = makeStems(3, 40);
+	const auto A = poseXYZYaw(0, 0, 1.5, 0);
+	const auto B = poseXYZYaw(3.0, 1.0, 1.6, 25);
+	const auto ca = voxelFilter(sampleView(stems, A, 20, 0.1, 1), 0.25, 40);
+	const auto cb = voxelFilter(sampleView(stems, B, 20, 0.1, 2), 0.25, 40);
+	IcpTarget target(withNormals(ca));
+	ASSERT_GT(target.size(), 1000u);
+	const Eigen::Isometry3d truth = A.inverse() * B;
+	// Start 0.8 m and 3 deg off.
+	const Eigen::Isometry3d guess = poseXYZYaw(0.5, -0.5, 0.3, 3) * truth;
+	const IcpResult r = target.align(cb, guess, IcpOptions{});
+	EXPECT_TRUE(r.converged);
+	const Eigen::Isometry3d e = truth.inverse() * r.T;
+	EXPECT_LT(e.translation().norm(), 0.03);
+	EXPECT_LT(angleDeg(e.linear()), 0.2);
+	EXPECT_GT(r.overlap, 0.6);
+	EXPECT_LT(r.rmse_m, 0.03);
+}
+
+TEST(Icp, VoxelFilterKeepsOnePointPerVoxelWithinRange)
+{
+	std::vector<Eigen::Vector3f> p{{0.01f, 0.01f, 0.01f},
+	                               {0.02f, 0.02f, 0.02f},
+	                               {-0.01f, 0.01f, 0.01f},
+	                               {50, 0, 0},
+	                               {NAN, 0, 0}};
+	const auto f = voxelFilter(p, 0.1, 40);
+	ASSERT_EQ(f.size(), 2u);  // the negative-x point is another voxel
+	EXPECT_FLOAT_EQ(f[0].x(), 0.01f);
+	EXPECT_FLOAT_EQ(f[1].x(), -0.01f);
+}
