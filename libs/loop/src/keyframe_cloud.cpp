@@ -64,11 +64,8 @@ NormalCloud withNormals(const std::vector<Eigen::Vector3f>& pts, int k,
 		Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
 		es.computeDirect(C);
 		const auto ev = es.eigenvalues();
-		// Planar: thin across, and spread in two directions (a single lidar
-		// ring on the ground is a line whose normal is undefined).
-		if (!(ev[1] > 0) || ev[0] > max_flatness * ev[1] ||
-		    ev[1] < 0.05 * ev[2])
-			continue;
+		// Planar enough: foliage (volumetric) is dropped.
+		if (!(ev[1] > 0) || ev[0] > max_flatness * ev[1]) continue;
 		out.points.push_back(p);
 		out.normals.push_back(es.eigenvectors().col(0).cast<float>());
 	}

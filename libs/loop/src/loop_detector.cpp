@@ -88,7 +88,7 @@ Closure verifyClosure(const std::vector<Keyframe>& kfs, const Poses& poses,
 	                                to, to, o.cloud_voxel_m);
 	if (target.size() < 200 || source.size() < 200)
 	{
-		c.reason = "too few points";
+		c.reason = "few_points";
 		return c;
 	}
 	IcpOptions io;
@@ -102,7 +102,7 @@ Closure verifyClosure(const std::vector<Keyframe>& kfs, const Poses& poses,
 	c.rmse_m = r.rmse_m;
 	if (!r.converged)
 	{
-		c.reason = "ICP did not converge";
+		c.reason = "not_converged";
 		return c;
 	}
 	if (r.overlap < o.min_overlap)
@@ -135,7 +135,7 @@ Closure verifyClosure(const std::vector<Keyframe>& kfs, const Poses& poses,
 	         d.tail<3>().squaredNorm() / (sr * sr);
 	if (c.chi2 > o.consistency_chi2)
 	{
-		c.reason = "inconsistent with odometry";
+		c.reason = "inconsistent";
 		return c;
 	}
 	// Uniqueness: from guesses displaced horizontally (in the candidate's

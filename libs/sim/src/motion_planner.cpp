@@ -172,7 +172,14 @@ PathPlan PathPlan::make(const MotionOptions& o, Rng& rng)
 		auto jit = [&]()
 		{ return Eigen::Vector2d(rng.uniform(-j, j), rng.uniform(-j, j)); };
 		p.waypoints_.emplace_back(0, 0);
-		for (int lap = 0; lap < o.loops; lap++)
+		for (int lap = 0; o.route == "out_and_back" && lap < o.loops; lap++)
+		{
+			// Out along a straight line and back on it: every place is seen
+			// again from the other direction, and stretches look alike.
+			p.waypoints_.emplace_back(2 * rx, 0);
+			p.waypoints_.emplace_back(0, 0);
+		}
+		for (int lap = 0; o.route == "loop" && lap < o.loops; lap++)
 		{
 			p.waypoints_.push_back(Eigen::Vector2d(rx, 0) + jit());
 			p.waypoints_.push_back(Eigen::Vector2d(rx, 2 * ry) + jit());

@@ -179,6 +179,11 @@ void TreeOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 	FS_LOAD(c, s, dead_branches_per_m);
 	FS_LOAD(c, s, dead_branch_min_height_m);
 	FS_LOAD(c, s, path_clearance_m);
+	FS_LOAD(c, s, layout);
+	FS_LOAD(c, s, row_spacing_m);
+	FS_LOAD(c, s, row_tree_spacing_m);
+	FS_LOAD(c, s, row_azimuth_deg);
+	FS_LOAD(c, s, row_jitter_m);
 }
 void TreeOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
                                    const std::string& s) const
@@ -207,6 +212,11 @@ void TreeOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
 	FS_SAVE(c, s, dead_branches_per_m);
 	FS_SAVE(c, s, dead_branch_min_height_m);
 	FS_SAVE(c, s, path_clearance_m);
+	FS_SAVE(c, s, layout);
+	FS_SAVE(c, s, row_spacing_m);
+	FS_SAVE(c, s, row_tree_spacing_m);
+	FS_SAVE(c, s, row_azimuth_deg);
+	FS_SAVE(c, s, row_jitter_m);
 }
 
 void SaplingOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
@@ -315,6 +325,7 @@ void MotionOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 	FS_LOAD(c, s, loop_wobble);
 	FS_LOAD(c, s, inner_loop_radius_m);
 	FS_LOAD(c, s, loops);
+	FS_LOAD(c, s, route);
 	FS_LOAD(c, s, bob_amplitude_m);
 	FS_LOAD(c, s, step_frequency_hz);
 	FS_LOAD(c, s, sway_deg);
@@ -342,6 +353,7 @@ void MotionOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
 	FS_SAVE(c, s, loop_wobble);
 	FS_SAVE(c, s, inner_loop_radius_m);
 	FS_SAVE(c, s, loops);
+	FS_SAVE(c, s, route);
 	FS_SAVE(c, s, bob_amplitude_m);
 	FS_SAVE(c, s, step_frequency_hz);
 	FS_SAVE(c, s, sway_deg);
@@ -584,6 +596,15 @@ void SimOptions::validate(const std::string& origin) const
 	      "1 < min <= building_height_max_m");
 	check(motion.type == "handheld" || motion.type == "robot", "motion", "type",
 	      "handheld | robot");
+	check(motion.route == "loop" ||
+	          (motion.route == "out_and_back" && motion.type == "robot"),
+	      "motion", "route", "loop | out_and_back (robot only)");
+	check(trees.layout == "random" || trees.layout == "rows", "trees",
+	      "layout", "random | rows");
+	check(trees.row_spacing_m >= 1 && trees.row_tree_spacing_m >= 1, "trees",
+	      "row_spacing_m", "row_spacing_m, row_tree_spacing_m >= 1");
+	check(trees.row_jitter_m >= 0 && trees.row_jitter_m <= 0.5, "trees",
+	      "row_jitter_m", "0..0.5");
 	check(motion.speed_min_mps > 0.05 &&
 	          motion.speed_min_mps <= motion.speed_max_mps &&
 	          motion.speed_max_mps <= 10,

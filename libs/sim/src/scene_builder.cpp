@@ -482,12 +482,39 @@ Scene buildScene(const SimOptions& o, const PathPlan& path, Rng& rng)
 	const int target =
 	    static_cast<int>(std::round(to.stems_per_ha * forest_area / 1e4));
 	const double search = to.hard_core_m + to.dbh_max_m * 1.2 + 0.1;
-	for (long attempt = 0; attempt < 60L * target &&
-	                       static_cast<int>(scene.trees.size()) < target;
+	// Plantation: the grid positions in row order (rows along the azimuth).
+	std::vector<Eigen::Vector2d> grid;
+	if (to.layout == "rows")
+	{
+		const double a = to.row_azimuth_deg * M_PI / 180;
+		const Eigen::Vector2d u(std::cos(a), std::sin(a)), v(-u.y(), u.x());
+		const double R = std::hypot(xmax - xmin, ymax - ymin);
+		// Rows offset by half a spacing from the start (the route runs
+		// between two rows).
+		for (double b = -R + 0.5 * to.row_spacing_m; b <= R;
+		     b += to.row_spacing_m)
+			for (double t = -R; t <= R; t += to.row_tree_spacing_m)
+			{
+				const Eigen::Vector2d q = t * u + b * v;
+				if (q.x() > xmin + 1 && q.x() < xmax - 1 && q.y() > ymin + 1 &&
+				    q.y() < ymax - 1)
+					grid.push_back(q);
+			}
+	}
+	const long attempts =
+	    grid.empty() ? 60L * target : static_cast<long>(grid.size());
+	for (long attempt = 0;
+	     attempt < attempts &&
+	     (!grid.empty() || static_cast<int>(scene.trees.size()) < target);
 	     attempt++)
 	{
-		const Eigen::Vector2d p =
-		    uniformIn(rng_trees, xmin + 1, ymin + 1, xmax - 1, ymax - 1);
+		Eigen::Vector2d p;
+		if (grid.empty())
+			p = uniformIn(rng_trees, xmin + 1, ymin + 1, xmax - 1, ymax - 1);
+		else
+			p = grid[attempt] + Eigen::Vector2d(rng_trees.uniform(-1, 1),
+			                                    rng_trees.uniform(-1, 1)) *
+			                        to.row_jitter_m;
 		const double dbh =
 		    std::clamp(rng_trees.lognormal(to.dbh_median_m, to.dbh_sigma_log),
 		               to.dbh_min_m, to.dbh_max_m);
@@ -497,8 +524,8 @@ Scene buildScene(const SimOptions& o, const PathPlan& path, Rng& rng)
 		if (nearStructure(p.x(), p.y(), r)) continue;
 		if (path_d(p.x(), p.y()) < to.path_clearance_m + r) continue;
 		if (b.onTrail(p.x(), p.y(), 0.5 + r)) continue;
-		if (accept * (1 + to.density_variation) >
-		    1 + to.density_variation * patch(p.x(), p.y()))
+		if (grid.empty() && accept * (1 + to.density_variation) >
+		                        1 + to.density_variation * patch(p.x(), p.y()))
 			continue;
 		if (stems.clearance(p.x(), p.y(), r, search) < to.hard_core_m) continue;
 		if (scene.trees.size() >= 65000)

@@ -25,6 +25,6 @@ struct NormalCloud
  * foliage, whose hits change with the view), a line (a single ring) or too
  * sparse are dropped. */
 NormalCloud withNormals(const std::vector<Eigen::Vector3f>& pts, int k = 10,
-                        double max_flatness = 0.1);
+                        double max_flatness = 0.3);
 
 }  // namespace forest_slam::loop

@@ -87,6 +87,12 @@ struct TreeOptions : public mrpt::config::CLoadableOptions
 	double dead_branches_per_m = 1.0;
 	double dead_branch_min_height_m = 2.0;
 	double path_clearance_m = 1.2;  ///< bark to path centre line
+	/** random: hard-core process (stems_per_ha); rows: a plantation, one
+	 * tree every row_tree_spacing_m along rows row_spacing_m apart, at
+	 * row_azimuth_deg (from east), each moved by up to row_jitter_m. */
+	std::string layout = "random";
+	double row_spacing_m = 3.0, row_tree_spacing_m = 2.5;
+	double row_azimuth_deg = 0, row_jitter_m = 0.1;
 	void loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 	                        const std::string& s) override;
 	void saveToConfigFile(mrpt::config::CConfigFileBase& c,
@@ -165,6 +171,9 @@ struct MotionOptions : public mrpt::config::CLoadableOptions
 	double loop_wobble = 0.15;        ///< handheld: radial irregularity
 	double inner_loop_radius_m = 12;  ///< handheld; 0 = no inner loop
 	int loops = 1;                    ///< robot: laps of the circuit
+	/** robot: loop (the jittered rectangle) or out_and_back (east along
+	 * 2 x loop_radius_x_m and back on the same line, `loops` times). */
+	std::string route = "loop";
 	// handheld gait
 	double bob_amplitude_m = 0.03;
 	double step_frequency_hz = 1.8;

@@ -1,0 +1,97 @@
+#!/usr/bin/env bash
+# Back-end benchmark (issue 8, doc/backend.md): forest-sim scenarios mapped
+# by `forest-slam map` with the odometry alone and with [loop] enabled, the
+# odometry drift optionally forced by injection. Prints, per run: return to
+# start, ATE (unaligned, the map frame is the GT's), closures accepted and
+# how many are false (measured pose > 0.5 m or 3 deg from the GT relative
+# pose of the two keyframes), back-end worker ms, throughput.
+# Scenarios: tiny loop (ini/sim-tiny.ini), plantation out and back
+# (ini/sim-plantation.ini), generated into BUILD/bench-loop/.
+# Usage: scripts/bench-loop.sh [BUILD]
+set -euo pipefail
+BUILD=${1:-build}
+BIN=$BUILD/bin
+OUT=$BUILD/bench-loop
+mkdir -p "$OUT"
+
+# ini_with_loop BASE_INI "key = value\n..." > FILE: the shipped INI with its
+# [loop] enabled and the given keys.
+ini_with_loop() {
+  python3 - "$1" "$2" <<'PY'
+import sys
+t = open(sys.argv[1]).read()
+k = "\nenabled = false\n"
+assert k in t, "no [loop] enabled = false in " + sys.argv[1]
+print(t.replace(k, "\nenabled = true\n" + sys.argv[2].replace("\\n", "\n") + "\n", 1))
+PY
+}
+
+figures() {  # DIR SIMDIR LABEL
+  "$BIN/forest-eval" traj --gt "$2/gt_trajectory.tum" --est "$1/trajectory.tum" \
+    --json "$1/traj.json" > /dev/null
+  python3 - "$1" "$2" "$3" <<'PY'
+import json, math, sys, bisect, csv, os
+d, sim, label = sys.argv[1:4]
+t = json.load(open(d + "/traj.json")); r = json.load(open(d + "/run_summary.json"))
+rs = t["return_to_start"]["estimate_vs_gt"]
+line = (f"  {label:28s} return {rs['total_trans_m']:.3f} m {rs['total_rot_deg']:.2f} deg, "
+        f"ATE {t['ate']['unaligned']['trans_m']['rmse']:.3f} m (aligned "
+        f"{t['ate']['aligned_se3']['trans_m']['rmse']:.3f}), {r['scans_per_second']:.1f} scans/s")
+lp = r.get("loop")
+if lp:
+    # Closures against the GT (quaternion maths without numpy).
+    def qmul(a, b):
+        x1, y1, z1, w1 = a; x2, y2, z2, w2 = b
+        return (w1*x2+x1*w2+y1*z2-z1*y2, w1*y2-x1*z2+y1*w2+z1*x2,
+                w1*z2+x1*y2-y1*x2+z1*w2, w1*w2-x1*x2-y1*y2-z1*z2)
+    def conj(q): return (-q[0], -q[1], -q[2], q[3])
+    def rot(q, v): return qmul(qmul(q, (v[0], v[1], v[2], 0)), conj(q))[:3]
+    gt = [list(map(float, l.split())) for l in open(sim + "/gt_trajectory.tum")
+          if l.strip() and not l.startswith("#")]
+    ts = [g[0] for g in gt]
+    def at(tt):
+        i = min(max(bisect.bisect_left(ts, tt), 0), len(ts) - 1)
+        g = gt[i]; return g[1:4], g[4:8]
+    def rel(a, b):
+        qi = conj(a[1]); return rot(qi, [b[0][k] - a[0][k] for k in range(3)]), qmul(qi, b[1])
+    acc = bad = 0; worst = (0.0, 0.0)
+    for c in csv.DictReader(open(d + "/loop_closures.csv")):
+        if c["accepted"] != "1": continue
+        acc += 1
+        g = rel(at(float(c["from_t_s"])), at(float(c["to_t_s"])))
+        m = ([float(c[k]) for k in ("x", "y", "z")], [float(c[k]) for k in ("qx", "qy", "qz", "qw")])
+        e = rel(g, m)
+        dm = math.sqrt(sum(x * x for x in e[0])); dd = 2 * math.degrees(math.acos(min(1, abs(e[1][3]))))
+        worst = (max(worst[0], dm), max(worst[1], dd))
+        bad += dm > 0.5 or dd > 3
+    line += (f"\n  {'':28s} {lp['keyframes']} keyframes, {lp['candidates']} candidates, {acc} closures "
+             f"({bad} false; worst {worst[0]:.3f} m {worst[1]:.2f} deg vs GT), worker "
+             f"{lp['verify_ms']/1e3:.1f} s verify + {lp['optimise_ms']/1e3:.2f} s optimise")
+print(line)
+PY
+}
+
+for s in tiny plantation; do
+  sim=$OUT/sim-$s
+  if [ ! -f "$sim/run.rawlog" ]; then
+    "$BIN/forest-sim" --config "ini/sim-$s.ini" --out "$sim" --progress log > "$OUT/sim-$s.log" 2>&1
+  fi
+  base=ini/vlp16-handheld.ini
+  [ "$s" = plantation ] && base=ini/vlp16-robot.ini
+  echo "== $s ($base, forest-sim ini/sim-$s.ini)"
+  drift='inject_yaw_deg_per_m = 0.1\ninject_z_m_per_m = 0.005\n'
+  fast='detect_every_keyframes = 1\nclosure_spacing_keyframes = 1\n'
+  [ "$s" = plantation ] && fast='min_travel_m = 15\ndetect_every_keyframes = 1\nclosure_spacing_keyframes = 2\n'
+  for run in odometry loop odometry+drift loop+drift; do
+    case $run in
+      odometry) keys='min_travel_m = 1e9' ;;
+      loop) keys=$fast ;;
+      odometry+drift) keys="${drift}min_travel_m = 1e9" ;;
+      loop+drift) keys="$drift$fast" ;;
+    esac
+    ini_with_loop "$base" "$keys" > "$OUT/$s-$run.ini"
+    "$BIN/forest-slam" map --config "$OUT/$s-$run.ini" --rawlog "$sim/run.rawlog" \
+      --out "$OUT/$s-$run" --progress log > "$OUT/$s-$run.log" 2>&1
+    figures "$OUT/$s-$run" "$sim" "$run"
+  done
+done
