@@ -2,7 +2,10 @@
 #include <forest_slam/odometry/feature_registration.h>
 
 #include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <thread>
 
 namespace forest_slam::odometry
 {
@@ -11,6 +14,7 @@ void RegistrationOptions::loadFromConfigFile(
 {
 	FS_LOAD(c, s, outer_iterations);
 	FS_LOAD(c, s, lm_iterations);
+	FS_LOAD(c, s, threads);
 	FS_LOAD(c, s, max_correspondence_m);
 	FS_LOAD(c, s, min_correspondence_m);
 	FS_LOAD(c, s, knn);
@@ -27,6 +31,8 @@ void RegistrationOptions::loadFromConfigFile(
 	const std::string where = core::configOrigin(c) + ": [" + s + "] ";
 	if (outer_iterations < 1 || lm_iterations < 1)
 		throw core::ConfigError(where + "iteration counts must be >= 1");
+	if (threads < 1 || threads > 64)
+		throw core::ConfigError(where + "threads must be in [1, 64]");
 	if (knn < 3 || edge_knn < 2)
 		throw core::ConfigError(where + "knn must be >= 3 and edge_knn >= 2");
 	if (!(min_correspondence_m > 0) ||
@@ -41,6 +47,7 @@ void RegistrationOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
 {
 	c.write(s, "outer_iterations", outer_iterations);
 	c.write(s, "lm_iterations", lm_iterations);
+	c.write(s, "threads", threads);
 	c.write(s, "max_correspondence_m", max_correspondence_m);
 	c.write(s, "min_correspondence_m", min_correspondence_m);
 	c.write(s, "knn", knn);
@@ -127,6 +134,25 @@ bool FeatureTarget::matchLine(const Eigen::Vector3f& x, double gate,
 namespace
 {
 /** A residual row: source point (sensor frame) and its plane (map frame). */
+/** fn(0..n-1) on `threads` threads (the caller's and threads-1 short-lived
+ * ones) taking chunks from a shared counter. Plain threads, not OpenMP:
+ * OpenMP's spinning workers doubled the CPU time on a loaded machine. */
+template <class F>
+void parallelChunks(int n, int threads, const F& fn)
+{
+	constexpr int chunk = 256;
+	std::atomic<int> next{0};
+	auto work = [&] {
+		for (int b; (b = next.fetch_add(chunk)) < n;)
+			for (int i = b, e = std::min(n, b + chunk); i < e; i++) fn(i);
+	};
+	const int extra = std::min(threads, (n + chunk - 1) / chunk) - 1;
+	std::vector<std::thread> pool;
+	for (int t = 0; t < extra; t++) pool.emplace_back(work);
+	work();
+	for (auto& th : pool) th.join();
+}
+
 struct Row
 {
 	Eigen::Vector3d p;
@@ -243,6 +269,8 @@ RegistrationResult registerFeatures(
 	Eigen::Vector3d t = initial.translation();
 	std::vector<Row> rows;
 	rows.reserve(src_planar.size() + 2 * src_edges.size());
+	std::vector<uint8_t> plane_ok, edge_ok;
+	std::vector<PlaneRow> plane_rows, edge_rows;
 	double lambda = 1e-4;
 
 	const int shrink_steps = std::max(1, o.outer_iterations / 2);
@@ -255,20 +283,41 @@ RegistrationResult registerFeatures(
 		    std::pow(o.min_correspondence_m / o.max_correspondence_m, a);
 		const Eigen::Isometry3f T =
 		    (Eigen::Translation3d(t) * Eigen::Quaterniond(R)).cast<float>();
+		// Matches in parallel, each into its own slot; the rows are then
+		// assembled in feature order, so the result is the same for any
+		// thread count.
+		const int np_src = static_cast<int>(src_planar.size());
+		const int ne_src = static_cast<int>(src_edges.size());
+		plane_ok.assign(src_planar.size(), 0);
+		edge_ok.assign(src_edges.size(), 0);
+		plane_rows.resize(src_planar.size());
+		edge_rows.resize(2 * src_edges.size());
+		parallelChunks(np_src + ne_src, o.threads, [&](int i) {
+			if (i < np_src)
+				plane_ok[i] = target.matchPlane(T * src_planar[i], gate, o,
+				                                plane_rows[i]);
+			else
+			{
+				const int e = i - np_src;
+				edge_ok[e] =
+				    target.matchLine(T * src_edges[e], gate, o,
+				                     edge_rows[2 * e], edge_rows[2 * e + 1]);
+			}
+		});
 		rows.clear();
 		size_t ne = 0, np = 0;
-		PlaneRow pa, pb;
-		for (const auto& p : src_planar)
-			if (target.matchPlane(T * p, gate, o, pa))
+		for (int i = 0; i < np_src; i++)
+			if (plane_ok[i])
 			{
-				rows.push_back({p.cast<double>(), pa});
+				rows.push_back({src_planar[i].cast<double>(), plane_rows[i]});
 				np++;
 			}
-		for (const auto& p : src_edges)
-			if (target.matchLine(T * p, gate, o, pa, pb))
+		for (int i = 0; i < ne_src; i++)
+			if (edge_ok[i])
 			{
-				rows.push_back({p.cast<double>(), pa});
-				rows.push_back({p.cast<double>(), pb});
+				const Eigen::Vector3d p = src_edges[i].cast<double>();
+				rows.push_back({p, edge_rows[2 * i]});
+				rows.push_back({p, edge_rows[2 * i + 1]});
 				ne++;
 			}
 		res.edge_matches = ne;

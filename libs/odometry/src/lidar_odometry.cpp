@@ -32,7 +32,8 @@ void OdometryOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
 }
 
 LidarOdometry::LidarOdometry(const OdometryConfig& cfg, map::CForestMap& map)
-    : cfg_(cfg), local_map_(cfg.local_map), map_(map), lattice_(cfg.ground)
+    : cfg_(cfg), local_map_(cfg.local_map, cfg.registration.plane_flatness),
+      map_(map), lattice_(cfg.ground)
 {
 }
 

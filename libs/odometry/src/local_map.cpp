@@ -96,6 +96,7 @@ void LocalMap::insert(const std::vector<Eigen::Vector3f>& edges,
 	    static_cast<float>(o_.planar_spacing_m * o_.planar_spacing_m);
 	const float ed2 = static_cast<float>(o_.edge_spacing_m * o_.edge_spacing_m);
 	const double sc = o_.coarse_voxel_m;
+	std::vector<PlaneVoxel*> touched;
 	for (const auto& p : planar)
 	{
 		if (!p.allFinite()) continue;
@@ -112,6 +113,12 @@ void LocalMap::insert(const std::vector<Eigen::Vector3f>& edges,
 		v.sum += q;
 		v.scatter.noalias() += q * q.transpose();
 		v.n++;
+		if (!v.touched) touched.push_back(&v), v.touched = true;
+	}
+	for (auto* v : touched)
+	{
+		refit(*v);
+		v->touched = false;
 	}
 	for (const auto& p : edges)
 		if (p.allFinite()) addPoint(edges_, ed2, p);
@@ -146,12 +153,10 @@ void LocalMap::prune(const Eigen::Vector3d& centre)
 			         : std::next(it);
 }
 
-bool LocalMap::fitted(const PlaneVoxel& v, const RegistrationOptions& o) const
+void LocalMap::refit(PlaneVoxel& v) const
 {
-	if (v.fitted_n == v.n) return v.planar;
-	v.fitted_n = v.n;
 	v.planar = false;
-	if (v.n < o_.min_points_per_plane) return false;
+	if (v.n < o_.min_points_per_plane) return;
 	const Eigen::Vector3d m = v.sum / v.n;
 	const Eigen::Matrix3d C = v.scatter / v.n - m * m.transpose();
 	Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
@@ -160,16 +165,15 @@ bool LocalMap::fitted(const PlaneVoxel& v, const RegistrationOptions& o) const
 	// A coarse voxel is a plane if its points spread over a tenth of it in
 	// both in-plane directions.
 	const double spread = 0.1 * o_.coarse_voxel_m;
-	if (!(ev[0] <= o.plane_flatness * ev[1]) || ev[1] < spread * spread)
-		return false;
+	if (!(ev[0] <= plane_flatness_ * ev[1]) || ev[1] < spread * spread)
+		return;
 	v.normal = es.eigenvectors().col(0).normalized();
 	v.mean = m + v.origin;
 	v.planar = true;
-	return true;
 }
 
 bool LocalMap::coarsePlane(const Eigen::Vector3d& x, double gate,
-                           const RegistrationOptions& o, PlaneRow& out) const
+                           PlaneRow& out) const
 {
 	const double sp = o_.coarse_voxel_m;
 	if (sp <= 0) return false;
@@ -185,7 +189,7 @@ bool LocalMap::coarsePlane(const Eigen::Vector3d& x, double gate,
 		const auto it = coarse_.find(key(i + d[0], j + d[1], k + d[2]));
 		if (it == coarse_.end()) continue;
 		const auto& v = it->second;
-		if (!fitted(v, o)) continue;
+		if (!v.planar) continue;
 		const double e = std::abs(v.normal.dot(x - v.mean));
 		// The point must project into the plane's extent, not onto its far
 		// extension.
@@ -262,7 +266,7 @@ bool LocalMap::matchPlane(const Eigen::Vector3f& x, double gate,
 				return true;
 		}
 	}
-	return coarsePlane(x.cast<double>(), gate, o, out);
+	return coarsePlane(x.cast<double>(), gate, out);
 }
 
 bool LocalMap::matchLine(const Eigen::Vector3f& x, double gate,

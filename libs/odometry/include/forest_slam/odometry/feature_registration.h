@@ -14,7 +14,10 @@ namespace forest_slam::odometry
 {
 struct RegistrationOptions : public mrpt::config::CLoadableOptions
 {
-	int outer_iterations = 6;  ///< correspondence searches
+	int outer_iterations = 4;  ///< correspondence searches
+	/** Threads of the correspondence search (the k-NN queries, ~half of a
+	 * scan's time); results do not depend on it. */
+	int threads = 2;
 	int lm_iterations = 4;     ///< LM iterations per correspondence search
 	/** Correspondence gate: shrinks geometrically from max to min over the
 	 * first half of the outer iterations (coarse to fine: far matches pull

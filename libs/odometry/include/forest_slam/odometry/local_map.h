@@ -46,7 +46,13 @@ struct LocalMapOptions : public mrpt::config::CLoadableOptions
 class LocalMap : public RegistrationTarget
 {
    public:
-	explicit LocalMap(const LocalMapOptions& o = {}) : o_(o) {}
+	/** plane_flatness: the coarse voxels' plane test, fixed when they are
+	 * fitted at insertion ([registration] plane_flatness). */
+	explicit LocalMap(const LocalMapOptions& o = {},
+	                  double plane_flatness = 0.1)
+	    : o_(o), plane_flatness_(plane_flatness)
+	{
+	}
 
 	/** Adds map-frame points. */
 	void insert(const std::vector<Eigen::Vector3f>& edges,
@@ -97,10 +103,11 @@ class LocalMap : public RegistrationTarget
 		Eigen::Vector3d sum = Eigen::Vector3d::Zero();
 		Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
 		int n = 0;
-		// Fit cache, valid while fitted_n == n.
-		mutable int fitted_n = -1;
-		mutable bool planar = false;
-		mutable Eigen::Vector3d normal, mean;
+		// The plane, refitted by insert() whenever points were added, so the
+		// queries only read (they run on several threads).
+		bool planar = false;
+		bool touched = false;  ///< points added during the current insert()
+		Eigen::Vector3d normal, mean;
 	};
 	struct PointCell
 	{
@@ -115,10 +122,11 @@ class LocalMap : public RegistrationTarget
 	/** The coarse plane nearest to x among its voxel and the six face
 	 * neighbours. */
 	bool coarsePlane(const Eigen::Vector3d& x, double gate,
-	                 const RegistrationOptions& o, PlaneRow& out) const;
-	bool fitted(const PlaneVoxel& v, const RegistrationOptions& o) const;
+	                 PlaneRow& out) const;
+	void refit(PlaneVoxel& v) const;
 
 	LocalMapOptions o_;
+	double plane_flatness_;
 	PointGrid planar_, edges_;
 	PlaneGrid coarse_;
 };
