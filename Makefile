@@ -20,6 +20,7 @@ build: configure
 	cmake --build $(BUILD_DIR) -j $(JOBS)
 
 test: build
+	@mkdir -p $(BUILD_DIR)/test-tmp && find $(BUILD_DIR)/test-tmp -mindepth 1 -delete
 	cd $(BUILD_DIR) && ctest --output-on-failure -j $(JOBS) --timeout 900
 
 demo: build

@@ -35,7 +35,12 @@ function(forest_slam_gtest name)
   if(NOT ARG_TIMEOUT)
     set(ARG_TIMEOUT 300)
   endif()
-  set_tests_properties(${name} PROPERTIES TIMEOUT ${ARG_TIMEOUT})
+  # Scratch files of the tests go under the build tree (TMPDIR is what
+  # std::filesystem::temp_directory_path() reads), not into the machine's
+  # /tmp where every run used to leave its fs_* folders behind.
+  file(MAKE_DIRECTORY ${CMAKE_BINARY_DIR}/test-tmp)
+  set_tests_properties(${name} PROPERTIES TIMEOUT ${ARG_TIMEOUT}
+    ENVIRONMENT "TMPDIR=${CMAKE_BINARY_DIR}/test-tmp")
   if(ARG_LABELS)
     set_tests_properties(${name} PROPERTIES LABELS "${ARG_LABELS}")
   endif()

@@ -117,8 +117,14 @@ TEST(Follow, RawlogGrabberOutputWhileItIsWritten)
 	       "pos_packets_timing_timeout = 0\n";
 	std::ofstream(dir + "/map.ini")
 	    << "[pipeline]\nlidar_label = VLP16_SCAN\ngnss_label = VLP16_GPS\n";
-	const std::string cmd = "(sleep 4; echo q) | " + grabber + " " + dir +
-	                        "/grab.ini > " + dir + "/grab.log 2>&1";
+	// Stop once the grabber has saved the capture's scans (it logs "Saved"
+	// per object; the capture holds 4 scans; at most 60 s), not after a
+	// fixed time: on a loaded machine it once saved a single scan in 4 s.
+	const std::string cmd =
+	    "(for i in $(seq 600); do n=$(grep -c Saved " + dir +
+	    "/grab.log 2>/dev/null); [ \"${n:-0}\" -ge 4 ] && break; sleep 0.1; "
+	    "done; sleep 0.5; echo q) | " +
+	    grabber + " " + dir + "/grab.ini > " + dir + "/grab.log 2>&1";
 	const pid_t writer = ::fork();
 	if (writer == 0) ::_exit(std::system(cmd.c_str()) == 0 ? 0 : 1);
 	std::string rawlog;

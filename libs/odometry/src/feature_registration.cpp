@@ -142,7 +142,8 @@ void parallelChunks(int n, int threads, const F& fn)
 {
 	constexpr int chunk = 256;
 	std::atomic<int> next{0};
-	auto work = [&] {
+	auto work = [&]
+	{
 		for (int b; (b = next.fetch_add(chunk)) < n;)
 			for (int i = b, e = std::min(n, b + chunk); i < e; i++) fn(i);
 	};
@@ -292,18 +293,20 @@ RegistrationResult registerFeatures(
 		edge_ok.assign(src_edges.size(), 0);
 		plane_rows.resize(src_planar.size());
 		edge_rows.resize(2 * src_edges.size());
-		parallelChunks(np_src + ne_src, o.threads, [&](int i) {
-			if (i < np_src)
-				plane_ok[i] = target.matchPlane(T * src_planar[i], gate, o,
-				                                plane_rows[i]);
-			else
-			{
-				const int e = i - np_src;
-				edge_ok[e] =
-				    target.matchLine(T * src_edges[e], gate, o,
-				                     edge_rows[2 * e], edge_rows[2 * e + 1]);
-			}
-		});
+		parallelChunks(np_src + ne_src, o.threads,
+		               [&](int i)
+		               {
+			               if (i < np_src)
+				               plane_ok[i] = target.matchPlane(
+				                   T * src_planar[i], gate, o, plane_rows[i]);
+			               else
+			               {
+				               const int e = i - np_src;
+				               edge_ok[e] = target.matchLine(
+				                   T * src_edges[e], gate, o, edge_rows[2 * e],
+				                   edge_rows[2 * e + 1]);
+			               }
+		               });
 		rows.clear();
 		size_t ne = 0, np = 0;
 		for (int i = 0; i < np_src; i++)

@@ -32,8 +32,10 @@ void OdometryOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
 }
 
 LidarOdometry::LidarOdometry(const OdometryConfig& cfg, map::CForestMap& map)
-    : cfg_(cfg), local_map_(cfg.local_map, cfg.registration.plane_flatness),
-      map_(map), lattice_(cfg.ground)
+    : cfg_(cfg),
+      local_map_(cfg.local_map, cfg.registration.plane_flatness),
+      map_(map),
+      lattice_(cfg.ground)
 {
 }
 

@@ -165,8 +165,7 @@ void LocalMap::refit(PlaneVoxel& v) const
 	// A coarse voxel is a plane if its points spread over a tenth of it in
 	// both in-plane directions.
 	const double spread = 0.1 * o_.coarse_voxel_m;
-	if (!(ev[0] <= plane_flatness_ * ev[1]) || ev[1] < spread * spread)
-		return;
+	if (!(ev[0] <= plane_flatness_ * ev[1]) || ev[1] < spread * spread) return;
 	v.normal = es.eigenvectors().col(0).normalized();
 	v.mean = m + v.origin;
 	v.planar = true;

@@ -18,7 +18,7 @@ struct RegistrationOptions : public mrpt::config::CLoadableOptions
 	/** Threads of the correspondence search (the k-NN queries, ~half of a
 	 * scan's time); results do not depend on it. */
 	int threads = 2;
-	int lm_iterations = 4;     ///< LM iterations per correspondence search
+	int lm_iterations = 4;  ///< LM iterations per correspondence search
 	/** Correspondence gate: shrinks geometrically from max to min over the
 	 * first half of the outer iterations (coarse to fine: far matches pull
 	 * a poor guess in, near matches make the final estimate precise). */

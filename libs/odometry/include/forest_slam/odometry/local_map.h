@@ -7,7 +7,8 @@
 //    give the plane (or line). Planes from nearby points follow curved
 //    surfaces such as stems, whose silhouette "edges" move with the view.
 //  - coarse plane voxels keep running sums (count, mean, scatter) and fit
-//    their plane on demand: the fallback where the points are too sparse.
+//    their plane when points were added: the fallback where the points are
+//    too sparse.
 // Voxels far from the sensor are dropped (prune); the CForestMap keeps the
 // full map.
 #include <forest_slam/odometry/feature_registration.h>
