@@ -4,7 +4,7 @@ BUILD_DIR ?= build
 JOBS ?= 2
 DEMO_DIR ?= $(BUILD_DIR)/demo
 
-.PHONY: all deps configure build test demo bench format clean
+.PHONY: all deps configure build test demo bench format clean test-asan fuzz
 
 all: build
 
@@ -25,6 +25,30 @@ test: build
 
 demo: build
 	bash scripts/demo.sh $(BUILD_DIR) $(DEMO_DIR)
+
+# The test suite under AddressSanitizer + UndefinedBehaviorSanitizer (-O1 -g)
+# in its own build folder (doc/reliability.md). ASAN_CTEST_ARGS passes ctest
+# options, e.g. ASAN_CTEST_ARGS="-LE sim" to leave the simulator e2e tests out.
+ASAN_DIR ?= build-asan
+ASAN_CTEST_ARGS ?=
+LAUNCHER := $(shell command -v ccache >/dev/null && echo -DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
+test-asan: deps
+	cmake -S . -B $(ASAN_DIR) -DCMAKE_BUILD_TYPE=Release -DFOREST_SLAM_SANITIZE=address $(LAUNCHER)
+	cmake --build $(ASAN_DIR) -j $(JOBS)
+	cd $(ASAN_DIR) && ASAN_OPTIONS=detect_leaks=1:abort_on_error=1:detect_stack_use_after_return=0 \
+	  LSAN_OPTIONS=suppressions=$(CURDIR)/tests/sanitizer/lsan.supp \
+	  UBSAN_OPTIONS=print_stacktrace=1:suppressions=$(CURDIR)/tests/sanitizer/ubsan.supp \
+	  ctest --output-on-failure -j $(JOBS) --timeout 3600 $(ASAN_CTEST_ARGS)
+
+# libFuzzer on the LAS reader, the ROS message decoders and the INI loader,
+# FUZZ_SECONDS each (clang, build-fuzz); crashes land in build-fuzz/crashes.
+FUZZ_DIR ?= build-fuzz
+FUZZ_SECONDS ?= 60
+fuzz: deps
+	cmake -S . -B $(FUZZ_DIR) -DCMAKE_BUILD_TYPE=Release -DCMAKE_C_COMPILER=clang \
+	  -DCMAKE_CXX_COMPILER=clang++ -DFOREST_SLAM_SANITIZE=fuzzer $(LAUNCHER)
+	cmake --build $(FUZZ_DIR) -j $(JOBS) --target fuzz_las fuzz_ros_messages fuzz_ini
+	bash scripts/fuzz.sh $(FUZZ_DIR) $(FUZZ_SECONDS)
 
 bench: build
 	bash scripts/bench.sh $(BUILD_DIR)

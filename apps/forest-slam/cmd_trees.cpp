@@ -4,6 +4,7 @@
 
 #include <forest_slam/core/atomic_file.h>
 #include <forest_slam/core/config.h>
+#include <forest_slam/core/log.h>
 #include <forest_slam/io/las.h>
 #include <forest_slam/trees/stem_detector.h>
 #include <forest_slam/trees/terrain_model.h>
@@ -52,7 +53,12 @@ int cmdTrees(const std::vector<std::string>& args, const char* usage)
 		cfg.checkNoUnknownKeys();
 	}
 	const auto t0 = std::chrono::steady_clock::now();
-	const auto c = io::readCloudFile(cloud);
+	// A LAS file cut short (copy interrupted) keeps its complete records:
+	// the trees found in them are written, the damage is named.
+	const auto c = io::readCloudFile(cloud, true);
+	if (!c.damage.empty())
+		FS_LOG_WARN(c.damage << " -- using the " << c.size()
+		                     << " points before the damage");
 	if (c.size() == 0) throw std::runtime_error(cloud + ": no points");
 	const auto dtm = trees::buildDtm(c.xyz, opts);
 	trees::TreeDetectionStats st;
@@ -87,6 +93,13 @@ int cmdTrees(const std::vector<std::string>& args, const char* usage)
 		            100 * hi);
 	}
 	std::printf("time: %.2f s\nwrote %s\n", secs, csv.c_str());
+	// Like `map` on a damaged rawlog: outputs written, exit status 1.
+	if (!c.damage.empty())
+	{
+		std::fprintf(stderr, "forest-slam: input damaged: %s\n",
+		             c.damage.c_str());
+		return 1;
+	}
 	return 0;
 }
 

@@ -1,10 +1,12 @@
 #include <forest_slam/core/atomic_file.h>
 
 #include <fcntl.h>
+#include <signal.h>
 #include <unistd.h>
 
 #include <cerrno>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <stdexcept>
@@ -59,6 +61,29 @@ AtomicFileWriter::~AtomicFileWriter()
 		out_.close();
 		std::remove(tmp_path_.c_str());
 	}
+}
+
+std::vector<std::string> removeStaleTempFiles(const std::string& dir)
+{
+	std::vector<std::string> removed;
+	std::error_code ec;
+	for (const auto& e : std::filesystem::directory_iterator(dir, ec))
+	{
+		const std::string name = e.path().filename().string();
+		const auto at = name.rfind(".tmp.");
+		if (at == std::string::npos || !e.is_regular_file(ec)) continue;
+		const std::string digits = name.substr(at + 5);
+		if (digits.empty() ||
+		    digits.find_first_not_of("0123456789") != std::string::npos)
+			continue;
+		const long pid = std::strtol(digits.c_str(), nullptr, 10);
+		if (pid <= 0) continue;
+		// Alive (or another user's): not ours to remove.
+		if (::kill(static_cast<pid_t>(pid), 0) == 0 || errno == EPERM) continue;
+		if (std::filesystem::remove(e.path(), ec))
+			removed.push_back(e.path().string());
+	}
+	return removed;
 }
 
 void AtomicFileWriter::commit()

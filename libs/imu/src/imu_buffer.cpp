@@ -16,10 +16,14 @@ bool ImuBuffer::add(double t_s, const Eigen::Vector3d& gyro,
 	e.s.gyro = gyro;
 	e.s.acc = acc;
 	// A gap (IMU stall) is not integrated through the filter: it restarts
-	// the integration step from this sample.
-	const double dt =
-	    samples_.empty() ? 0.0 : std::min(0.1, t_s - samples_.back().s.t_s);
-	filter_.update(e.s.gyro, e.s.acc, dt);
+	// the integration step from this sample. Roll and pitch changed unseen
+	// during the gap; the accelerometer pulls them back within ~2/kp, and
+	// until then the attitude is not handed out (attitudeAt: no gravity
+	// prior on a wrong "up"), the rotations between samples still are.
+	const double gap = samples_.empty() ? 0.0 : t_s - samples_.back().s.t_s;
+	if (gap > kMaxStep_s) settle_until_s_ = t_s + 2.0 / std::max(0.05, kp_);
+	filter_.update(e.s.gyro, e.s.acc, std::min(kMaxStep_s, gap));
+	e.settling = t_s < settle_until_s_;
 	e.attitude = filter_.attitude();
 	e.bias = filter_.gyroBias();
 	e.levelled = filter_.initialised();
@@ -78,7 +82,7 @@ bool ImuBuffer::attitudeAt(double t_s, Eigen::Quaterniond& q) const
 	                     [](double t, const Entry& e) { return t < e.s.t_s; });
 	if (it == samples_.begin()) return false;
 	--it;
-	if (t_s - it->s.t_s > 0.1) return false;
+	if (t_s - it->s.t_s > kMaxStep_s || it->settling) return false;
 	if (!it->levelled)
 	{
 		// Before the filter levelled itself: its first levelled attitude,

@@ -12,6 +12,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 
 namespace forest_slam::ingest
 {
@@ -31,6 +32,35 @@ int64_t pcapFirstRecordNs(const std::string& path)
 	{
 		return -1;
 	}
+}
+
+/** The first damaged record of a classic pcap (file, record, byte offset),
+ * or "" if it is whole. MRPT's reader (libpcap) takes a truncated capture
+ * for its end without a word, so the converter checks it itself. pcapng and
+ * unreadable files are left to MRPT/libpcap to judge. */
+std::string pcapDamage(const std::string& path)
+{
+	std::unique_ptr<PcapFile> f;
+	try
+	{
+		f = std::make_unique<PcapFile>(path);
+	}
+	catch (const std::exception&)
+	{
+		return "";
+	}
+	try
+	{
+		PcapUdpDatagram d;
+		while (f->nextUdp(d))
+		{
+		}
+	}
+	catch (const std::exception& e)
+	{
+		return e.what();
+	}
+	return "";
 }
 
 /** Azimuth swept by a revolution's packets [deg]. */
@@ -175,6 +205,11 @@ PcapReport convertPcap(const std::string& pcap_path,
 	}
 	if (show_progress) progress.finish();
 	writer.close();
+	if (rep.error.empty())
+		if (const auto damage = pcapDamage(pcap_path); !damage.empty())
+			rep.error =
+			    "capture damaged: " + damage + "; the rawlog holds the " +
+			    std::to_string(rep.revolutions) + " revolutions before it";
 	return rep;
 }
 

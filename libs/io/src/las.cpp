@@ -299,9 +299,14 @@ void readRecords(const std::vector<char>& d, size_t start, size_t n,
 }
 }  // namespace
 
-PointCloudFile readLas(const std::string& path)
+PointCloudFile readLas(const std::string& path, bool partial)
 {
-	const auto d = slurp(path);
+	return parseLas(slurp(path), path, partial);
+}
+
+PointCloudFile parseLas(const std::vector<char>& d, const std::string& path,
+                        bool partial)
+{
 	if (d.size() < 227)
 		fail(path, d.size(), "shorter than a LAS 1.2 header (227 bytes)");
 	if (std::memcmp(d.data(), "LASF", 4) != 0)
@@ -346,15 +351,29 @@ PointCloudFile readLas(const std::string& path)
 		fail(path, 96,
 		     "offset to point data (" + std::to_string(point_offset) +
 		         ") lies inside the header");
-	const uint64_t need = uint64_t(point_offset) + n * record_len;
-	if (need > d.size())
+	if (point_offset > d.size())
+		fail(path, 96,
+		     "offset to point data (" + std::to_string(point_offset) +
+		         ") lies beyond the end of the file (" +
+		         std::to_string(d.size()) + " bytes)");
+	// Compared in records, so that a huge (corrupt) count cannot overflow.
+	const uint64_t avail = (d.size() - point_offset) / record_len;
+	std::string damage;
+	if (n > avail && partial)
+	{
+		damage = path + ": byte " +
+		         std::to_string(point_offset + avail * record_len) +
+		         ": truncated: " + std::to_string(avail) + " of " +
+		         std::to_string(n) + " point records are complete";
+		n = avail;
+	}
+	else if (n > avail)
 		fail(path, d.size(),
 		     "point count " + std::to_string(n) +
 		         " exceeds the file: " + std::to_string(n) + " records of " +
 		         std::to_string(record_len) + " bytes from byte " +
-		         std::to_string(point_offset) + " need " +
-		         std::to_string(need) + " bytes, file has " +
-		         std::to_string(d.size()));
+		         std::to_string(point_offset) + " need more than the " +
+		         std::to_string(d.size()) + " bytes the file has");
 	double scale[3], offset[3];
 	for (int i = 0; i < 3; i++)
 	{
@@ -367,6 +386,7 @@ PointCloudFile readLas(const std::string& path)
 	const bool has_gps = format == 1 || format == 3 || format >= 6;
 	const size_t gps_at = format >= 6 ? 22 : 20;
 	PointCloudFile out;
+	out.damage = damage;
 	out.xyz.resize(n);
 	out.intensity.resize(n);
 	out.classification.resize(n);
@@ -537,12 +557,12 @@ PointCloudFile readPcd(const std::string& path)
 	return out;
 }
 
-PointCloudFile readCloudFile(const std::string& path)
+PointCloudFile readCloudFile(const std::string& path, bool partial)
 {
 	const auto dot = path.find_last_of('.');
 	const std::string ext =
 	    dot == std::string::npos ? "" : lower(path.substr(dot + 1));
-	if (ext == "las") return readLas(path);
+	if (ext == "las") return readLas(path, partial);
 	if (ext == "ply") return readPly(path);
 	if (ext == "pcd") return readPcd(path);
 	if (ext == "laz")

@@ -336,6 +336,7 @@ RegistrationResult registerFeatures(
 		{
 			info.setZero();
 			const double cost = prob.evaluate(R, t, &H, &g, &info);
+			res.information = info;
 			res.information_eigenvalues =
 			    Eigen::SelfAdjointEigenSolver<Mat6>(info).eigenvalues();
 			// Levenberg–Marquardt: damp, try, accept if the cost drops.

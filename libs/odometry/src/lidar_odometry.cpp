@@ -1,5 +1,6 @@
 #include <forest_slam/core/config.h>
 #include <forest_slam/core/log.h>
+#include <forest_slam/odometry/degeneracy.h>
 #include <forest_slam/odometry/lidar_odometry.h>
 
 #include <algorithm>
@@ -15,11 +16,15 @@ void OdometryOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 	FS_LOAD(c, s, use_imu);
 	FS_LOAD(c, s, min_matches);
 	FS_LOAD(c, s, degeneracy_ratio);
+	FS_LOAD(c, s, degenerate_hold_ratio);
 	const std::string where = core::configOrigin(c) + ": [" + s + "] ";
 	if (prune_every_scans < 1)
 		throw core::ConfigError(where + "prune_every_scans must be >= 1");
 	if (min_matches < 6)
 		throw core::ConfigError(where + "min_matches must be >= 6");
+	if (!(degenerate_hold_ratio >= 0 && degenerate_hold_ratio < 1))
+		throw core::ConfigError(where +
+		                        "degenerate_hold_ratio: expected 0 <= x < 1");
 }
 
 void OdometryOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
@@ -29,6 +34,7 @@ void OdometryOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
 	c.write(s, "use_imu", use_imu);
 	c.write(s, "min_matches", min_matches);
 	c.write(s, "degeneracy_ratio", degeneracy_ratio);
+	c.write(s, "degenerate_hold_ratio", degenerate_hold_ratio);
 }
 
 LidarOdometry::LidarOdometry(const OdometryConfig& cfg, map::CForestMap& map)
@@ -191,6 +197,13 @@ OdometryStep LidarOdometry::processScan(const core::ScanPoints& scan)
 		Eigen::Isometry3d delta = core::interpolateIsometry(
 		    Eigen::Isometry3d::Identity(), velocity_, dt / last_period_s_);
 		if (use_imu) delta.linear() = imuRotation(last_stamp_s_, stamp);
+		// After a lidar gap (dropped scans): the body-frame velocity held
+		// step by step while the IMU turns the frame, an arc instead of a
+		// straight chord (degeneracy.h).
+		if (use_imu && dt > 1.5 * last_period_s_)
+			delta = predictAcrossGap(
+			    velocity_, last_period_s_, last_stamp_s_, stamp,
+			    [this](double a, double b) { return imuRotation(a, b); });
 		predicted = last_pose_ * delta;
 	}
 	Eigen::Vector3d up;
@@ -264,6 +277,10 @@ OdometryStep LidarOdometry::processScan(const core::ScanPoints& scan)
 		{
 			pose = r.T;
 			step.registered = true;
+			// Degenerate place: the prediction holds the weak directions.
+			if (step.degenerate && cfg_.odometry.degenerate_hold_ratio > 0)
+				pose = remapDegenerate(predicted, r.T, r.information,
+				                       cfg_.odometry.degenerate_hold_ratio);
 		}
 		else
 			core::logOnce(

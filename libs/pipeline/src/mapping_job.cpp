@@ -258,6 +258,10 @@ MappingResult runMapping(const MappingJob& job, const MappingConfig& cfg,
 				" (set pose_source=trajectory)");
 	}
 	core::ensureDirectory(job.out_dir);
+	// A previous run killed while writing its outputs left temp files.
+	for (const auto& f : core::removeStaleTempFiles(job.out_dir))
+		FS_LOG_WARN("removed " << f
+		                       << ", left by a run killed while writing it");
 	MappingPipeline pipeline(cfg, poses);
 
 	MappingResult result;
@@ -352,6 +356,11 @@ std::vector<std::string> writeOutputs(
 		   << "  \"scans_light\": " << s.scans_light << ",\n"
 		   << "  \"scans_imu\": " << s.scans_imu << ",\n"
 		   << "  \"imu_rejected\": " << s.imu_rejected << ",\n"
+		   << "  \"scans_duplicate\": " << s.scans_duplicate << ",\n"
+		   << "  \"points_nonfinite\": " << s.points_nonfinite << ",\n"
+		   << "  \"lidar_gaps\": " << s.lidar_gaps << ",\n"
+		   << "  \"imu_gaps\": " << s.imu_gaps << ",\n"
+		   << "  \"gnss_rejected\": " << s.gnss_rejected << ",\n"
 		   << "  \"imu\": " << s.imu << ",\n"
 		   << "  \"gnss\": " << s.gnss << ",\n"
 		   << "  \"other\": " << s.other << ",\n"
@@ -359,30 +368,38 @@ std::vector<std::string> writeOutputs(
 		   << "  \"data_seconds\": " << s.dataSeconds() << ",\n"
 		   << "  \"wall_seconds\": " << r.wall_seconds << ",\n"
 		   << "  \"scans_per_second\": "
-		   << (r.wall_seconds > 0 ? s.scans_mapped / r.wall_seconds : 0) << ",\n"
+		   << (r.wall_seconds > 0 ? s.scans_mapped / r.wall_seconds : 0)
+		   << ",\n"
 		   << "  \"real_time_factor\": " << rt << ",\n"
-		   << "  \"stage_ms\": " << stageTimesJson(s.stage_ms, s.tree_ms) << ",\n"
-		   << "  \"map_edge_voxels\": " << p.forestMap().edgePointCount() << ",\n"
-		   << "  \"map_planar_voxels\": " << p.forestMap().planarPointCount() << ",\n"
+		   << "  \"stage_ms\": " << stageTimesJson(s.stage_ms, s.tree_ms)
+		   << ",\n"
+		   << "  \"map_edge_voxels\": " << p.forestMap().edgePointCount()
+		   << ",\n"
+		   << "  \"map_planar_voxels\": " << p.forestMap().planarPointCount()
+		   << ",\n"
 		   << "  \"map_submaps\": " << p.forestMap().submaps().size() << ",\n"
 		   << "  \"trees\": " << out.trees << ",\n"
 		   << "  \"tree_layer\": {\"total_ms\": " << tree_total_ms
 		   << ", \"share_of_wall\": "
 		   << (r.wall_seconds > 0 ? tree_total_ms / (1000 * r.wall_seconds) : 0)
-		   << ", \"finish_ms\": " << s.tree_finish_ms << ", \"detections\": "
-		   << (layer ? layer->stats().detections : 0) << ", \"detect_ms\": "
-		   << (layer ? layer->stats().detect_ms : 0) << ", \"stem_voxels\": "
+		   << ", \"finish_ms\": " << s.tree_finish_ms
+		   << ", \"detections\": " << (layer ? layer->stats().detections : 0)
+		   << ", \"detect_ms\": " << (layer ? layer->stats().detect_ms : 0)
+		   << ", \"stem_voxels\": "
 		   << (layer ? layer->stats().stored_voxels : 0) << "},\n"
 		   << "  \"output_collect_ms_per_scan\": "
-		   << (col.scans() ? 1e3 * col.collectSeconds() / col.scans() : 0.0) << ",\n"
+		   << (col.scans() ? 1e3 * col.collectSeconds() / col.scans() : 0.0)
+		   << ",\n"
 		   << "  \"output_write_seconds\": " << out.seconds << ",\n"
 		   << "  \"loop\": " << loopJson(p.backEnd()) << ",\n"
 		   << "  \"keyframes\": " << out.keyframes << ",\n"
 		   << "  \"dense_points\": " << out.dense_points << ",\n"
 		   << "  \"peak_memory_mb\": " << outputs::peakMemoryMb() << ",\n"
-		   << "  \"input_damaged\": " << (r.input_damaged ? "true" : "false") << ",\n"
+		   << "  \"input_damaged\": " << (r.input_damaged ? "true" : "false")
+		   << ",\n"
 		   << "  \"damage\": \"" << jsonEscape(r.damage_message) << "\",\n"
-		   << "  \"interrupted\": " << (r.interrupted ? "true" : "false") << "\n"
+		   << "  \"interrupted\": " << (r.interrupted ? "true" : "false")
+		   << "\n"
 		   << "}\n";
 	});
 	written.push_back(summary);

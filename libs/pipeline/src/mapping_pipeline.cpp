@@ -11,19 +11,40 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <deque>
 #include <stdexcept>
+#include <string>
 
 namespace forest_slam::pipeline
 {
+namespace
+{
+std::string fixed(double v, int decimals)
+{
+	char buf[64];
+	std::snprintf(buf, sizeof(buf), "%.*f", decimals, v);
+	return buf;
+}
+}  // namespace
+
+std::string MappingPipeline::when(double t_s) const
+{
+	std::string out = "t=" + fixed(t_s, 3) + " s";
+	if (stats_.scans_in > 0)
+		out += " (" + fixed(t_s - stats_.first_stamp_s, 2) + " s into the run)";
+	return out;
+}
+
 MappingPipeline::MappingPipeline(const MappingConfig& cfg,
                                  std::optional<core::Trajectory> poses)
     : cfg_(cfg),
       poses_(std::move(poses)),
       map_(cfg.forest_map),
+      gnss_check_(cfg.pipeline.gnss_max_speed_mps,
+                  cfg.pipeline.gnss_jump_tolerance_m),
       imu_buffer_(cfg.odometry.imu),
-      outputs_(cfg.outputs, cfg.pipeline.min_range_m,
-               cfg.pipeline.max_range_m)
+      outputs_(cfg.outputs, cfg.pipeline.min_range_m, cfg.pipeline.max_range_m)
 {
 	if (cfg_.pipeline.poseSource() == PoseSource::Trajectory)
 	{
@@ -92,6 +113,17 @@ void MappingPipeline::process(const mrpt::obs::CObservation::Ptr& obs)
 	         std::dynamic_pointer_cast<mrpt::obs::CObservationIMU>(obs))
 	{
 		stats_.imu++;
+		const double t = mrpt::Clock::toDouble(obs->timestamp);
+		if (std::isfinite(t))
+			if (const double gap = imu_gaps_.observe(t); gap > 0)
+			{
+				stats_.imu_gaps++;
+				core::logOnce(core::LogLevel::Warn, "imu-gap",
+				              "IMU gap: no sample for " + fixed(gap, 2) +
+				                  " s before " + when(t) +
+				                  "; scans in it go on with the motion model "
+				                  "(further gaps counted as imu_gaps)");
+			}
 		if (!static_pose_) accumulateGravity(*obs);
 		if (cfg_.pipeline.poseSource() == PoseSource::Odometry &&
 		    cfg_.odometry.odometry.use_imu)
@@ -104,8 +136,7 @@ void MappingPipeline::process(const mrpt::obs::CObservation::Ptr& obs)
 	         std::dynamic_pointer_cast<mrpt::obs::CObservationGPS>(obs))
 	{
 		stats_.gnss++;
-		outputs_.addGnss(*obs);
-		backEndGnss(*obs);
+		checkGnss(*obs);  // a jumping fix reaches neither outputs nor back-end
 	}
 	else
 	{
@@ -115,6 +146,41 @@ void MappingPipeline::process(const mrpt::obs::CObservation::Ptr& obs)
 		                  obs->GetRuntimeClass()->className +
 		                  ") are not used by this configuration");
 	}
+}
+
+void MappingPipeline::checkGnss(const mrpt::obs::CObservation& obs)
+{
+	const auto& gps = dynamic_cast<const mrpt::obs::CObservationGPS&>(obs);
+	if (gps.has_GGA_datum())
+	{
+		const auto& f =
+		    gps.getMsgByClass<mrpt::obs::gnss::Message_NMEA_GGA>().fields;
+		const double t = mrpt::Clock::toDouble(obs.timestamp);
+		double d = 0;
+		if (f.fix_quality > 0 && std::isfinite(t))
+		{
+			const auto v = gnss_check_.observe(t, f.latitude_degrees,
+			                                   f.longitude_degrees, d);
+			if (v == GnssJumpCheck::Verdict::Jump)
+			{
+				stats_.gnss_rejected++;
+				core::logOnce(core::LogLevel::Warn, "gnss-jump",
+				              "GNSS fix at " + when(t) + " jumped " +
+				                  fixed(d, 1) +
+				                  " m from the last accepted fix: rejected "
+				                  "(further such fixes counted as "
+				                  "gnss_rejected)");
+				return;
+			}
+			if (v == GnssJumpCheck::Verdict::Reanchored)
+				FS_LOG_WARN("GNSS fixes stayed " << fixed(d, 1)
+				                                 << " m away since the jump: "
+				                                    "accepted again from "
+				                                 << when(t));
+		}
+	}
+	outputs_.addGnss(obs);
+	backEndGnss(obs);
 }
 
 void MappingPipeline::accumulateGravity(const mrpt::obs::CObservation& o)
@@ -158,12 +224,22 @@ void MappingPipeline::addImuSample(const mrpt::obs::CObservation& o)
 	if (!imu_buffer_.add(t, R * w, R * a))
 	{
 		stats_.imu_rejected++;
-		core::logOnce(
-		    core::LogLevel::Warn, "imu-rejected",
-		    "IMU sample at t=" + std::to_string(t) +
-		        " s is not finite or not after the previous sample (" +
-		        std::to_string(imu_buffer_.latestTime()) +
-		        " s): ignored (further such samples counted as imu_rejected)");
+		// Two keys: a non-finite sample and a stamp going backwards are
+		// different faults and each is named once.
+		const bool finite = std::isfinite(t) && w.allFinite() && a.allFinite();
+		if (finite)
+			core::logOnce(core::LogLevel::Warn, "imu-time-order",
+			              "IMU sample at " + when(t) +
+			                  " is not after the previous sample (t=" +
+			                  fixed(imu_buffer_.latestTime(), 3) +
+			                  " s): ignored (further such samples counted "
+			                  "as imu_rejected)");
+		else
+			core::logOnce(core::LogLevel::Warn, "imu-nonfinite",
+			              "IMU sample at " + when(t) +
+			                  " has a non-finite time, rate or "
+			                  "acceleration: ignored (further such samples "
+			                  "counted as imu_rejected)");
 	}
 }
 
@@ -251,8 +327,9 @@ void MappingPipeline::mapWithOdometry(
 	{
 		stats_.scans_empty++;
 		core::logOnce(core::LogLevel::Warn, "scan-empty",
-		              "lidar scan at t=" + std::to_string(pts.stamp_s) +
-		                  " s has no valid return: skipped");
+		              "lidar scan at " + when(pts.stamp_s) +
+		                  " has no valid return: skipped (further such scans "
+		                  "counted as scans_empty)");
 		return;
 	}
 	pending_.push_back({std::move(pts), scan.sensorPose});
@@ -309,20 +386,59 @@ bool MappingPipeline::lidarPoseAt(double t_s, Eigen::Isometry3d& out) const
 	return core::interpolatePose(*poses_, t_s, out, 1e-3);
 }
 
+bool MappingPipeline::dropNonFinite(core::ScanPoints& pts)
+{
+	auto& v = pts.points;
+	const size_t n = v.size();
+	v.erase(std::remove_if(v.begin(), v.end(),
+	                       [](const core::ScanPoint& p)
+	                       {
+		                       return !std::isfinite(p.x) ||
+		                              !std::isfinite(p.y) ||
+		                              !std::isfinite(p.z) ||
+		                              !std::isfinite(p.t_s);
+	                       }),
+	        v.end());
+	const size_t bad = n - v.size();
+	if (bad == 0) return true;
+	stats_.points_nonfinite += bad;
+	// Corrupt geometry, not an empty view: reported under its own name.
+	core::logOnce(core::LogLevel::Warn, "scan-nonfinite",
+	              "lidar scan at " + when(pts.stamp_s) + " has " +
+	                  std::to_string(bad) + " of " + std::to_string(n) +
+	                  " points not finite (NaN/inf): dropped (further such "
+	                  "points counted as points_nonfinite)");
+	if (!v.empty()) return true;
+	stats_.scans_unreadable++;
+	return false;
+}
+
 void MappingPipeline::processScan(
     const mrpt::obs::CObservationRotatingScan& scan)
 {
 	stats_.scans_in++;
 	const double stamp = mrpt::Clock::toDouble(scan.timestamp);
 	if (stats_.scans_in == 1) stats_.first_stamp_s = stamp;
+	if (have_last_scan_ && stamp == last_scan_stamp_s_)
+	{
+		stats_.scans_out_of_order++;
+		stats_.scans_duplicate++;
+		core::logOnce(core::LogLevel::Warn, "scan-duplicate",
+		              "lidar scan " + std::to_string(stats_.scans_in - 1) +
+		                  " at " + when(stamp) +
+		                  " repeats the previous scan's time (a duplicate): "
+		                  "skipped (further duplicates counted as "
+		                  "scans_duplicate)");
+		return;
+	}
 	if (!std::isfinite(stamp) ||
 	    (have_last_scan_ && stamp <= last_scan_stamp_s_))
 	{
 		stats_.scans_out_of_order++;
 		core::logOnce(core::LogLevel::Warn, "scan-time-order",
 		              "lidar scan " + std::to_string(stats_.scans_in - 1) +
-		                  " has time " + std::to_string(stamp) +
-		                  " s, not after the previous scan (" +
+		                  " at " + when(stamp) +
+		                  " is not after the previous scan (" +
 		                  std::to_string(last_scan_stamp_s_) +
 		                  " s): skipped (further such scans counted silently)");
 		return;
@@ -330,6 +446,15 @@ void MappingPipeline::processScan(
 	have_last_scan_ = true;
 	last_scan_stamp_s_ = stamp;
 	stats_.last_stamp_s = stamp;
+	if (const double gap = scan_gaps_.observe(stamp); gap > 0)
+	{
+		stats_.lidar_gaps++;
+		core::logOnce(core::LogLevel::Warn, "lidar-gap",
+		              "lidar gap: no scan for " + fixed(gap, 2) + " s before " +
+		                  when(stamp) +
+		                  "; the motion model bridges it (further gaps "
+		                  "counted as lidar_gaps)");
+	}
 
 	core::ScanPoints pts;
 	try
@@ -345,6 +470,7 @@ void MappingPipeline::processScan(
 		return;
 	}
 	stats_.points_in += pts.points.size();
+	if (!dropNonFinite(pts)) return;
 	if (cfg_.pipeline.poseSource() == PoseSource::Odometry)
 	{
 		mapWithOdometry(scan, pts);
@@ -409,8 +535,9 @@ void MappingPipeline::processScan(
 	{
 		stats_.scans_empty++;
 		core::logOnce(core::LogLevel::Warn, "scan-empty",
-		              "lidar scan at t=" + std::to_string(stamp) +
-		                  " s has no valid return: skipped");
+		              "lidar scan at " + when(stamp) +
+		                  " has no valid return: skipped (further such scans "
+		                  "counted as scans_empty)");
 		return;
 	}
 	map_.insertFeatures(edge_map, planar_map);

@@ -14,6 +14,8 @@ void PipelineOptions::loadFromConfigFile(
 	FS_LOAD(c, s, min_range_m);
 	FS_LOAD(c, s, max_range_m);
 	FS_LOAD(c, s, deskew);
+	FS_LOAD(c, s, gnss_max_speed_mps);
+	FS_LOAD(c, s, gnss_jump_tolerance_m);
 	const std::string where = core::configOrigin(c) + ": [" + s + "] ";
 	if (pose_source != "static" && pose_source != "trajectory" &&
 		pose_source != "odometry")
@@ -26,6 +28,10 @@ void PipelineOptions::loadFromConfigFile(
 	if (!(min_range_m >= 0) || !(max_range_m > min_range_m))
 		throw core::ConfigError(
 			where + "need 0 <= min_range_m < max_range_m");
+	if (!(gnss_max_speed_mps > 0) || !(gnss_jump_tolerance_m > 0))
+		throw core::ConfigError(
+		    where +
+		    "gnss_max_speed_mps and gnss_jump_tolerance_m: expected > 0");
 }
 
 void PipelineOptions::saveToConfigFile(
@@ -39,6 +45,8 @@ void PipelineOptions::saveToConfigFile(
 	c.write(s, "min_range_m", min_range_m);
 	c.write(s, "max_range_m", max_range_m);
 	c.write(s, "deskew", deskew);
+	c.write(s, "gnss_max_speed_mps", gnss_max_speed_mps);
+	c.write(s, "gnss_jump_tolerance_m", gnss_jump_tolerance_m);
 }
 
 PoseSource PipelineOptions::poseSource() const

@@ -495,6 +495,7 @@ SimOptions SimOptions::load(core::TrackedConfig& cfg)
 	o.imu.loadFromConfigFile(cfg, "imu");
 	o.gnss.loadFromConfigFile(cfg, "gnss");
 	o.output.loadFromConfigFile(cfg, "output");
+	o.faults.loadFromConfigFile(cfg, "faults");
 	cfg.acceptSection("ground_truth");
 	cfg.checkNoUnknownKeys();
 	o.validate(cfg.origin());
@@ -697,6 +698,7 @@ void SimOptions::validate(const std::string& origin) const
 	check(output.bag_compression == "none" || output.bag_compression == "lz4" ||
 	          output.bag_compression == "bz2",
 	      "output", "bag_compression", "none | lz4 | bz2");
+	faults.validate(origin);
 }
 
 std::string SimOptions::toIni() const
@@ -715,6 +717,7 @@ std::string SimOptions::toIni() const
 	imu.saveToConfigFile(m, "imu");
 	gnss.saveToConfigFile(m, "gnss");
 	output.saveToConfigFile(m, "output");
+	if (faults.any()) faults.saveToConfigFile(m, "faults");
 	return m.getContent();
 }
 

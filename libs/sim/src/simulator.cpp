@@ -4,6 +4,7 @@
 #include <forest_slam/io/rawlog_writer.h>
 #include <forest_slam/io/tum.h>
 #include <forest_slam/sim/bag_writer.h>
+#include <forest_slam/sim/faults.h>
 #include <forest_slam/sim/gnss_sim.h>
 #include <forest_slam/sim/imu_sim.h>
 #include <forest_slam/sim/lidar_sim.h>
@@ -176,10 +177,16 @@ RunResult runSimulation(const SimOptions& opts, const RunRequest& req)
 	res.path_length_m = sc.path().length();
 	res.duration_s = sc.body().endTime() - sc.body().startTime();
 	Rng rng_imu(sc.imuSeed()), rng_gnss(sc.gnssSeed());
-	const auto imu = simulateImu(sc.body(), o.imu, rng_imu);
-	const auto gnss = simulateGnss(sc.world(), sc.body(), o.gnss, rng_gnss);
+	auto imu = simulateImu(sc.body(), o.imu, rng_imu);
+	auto gnss = simulateGnss(sc.world(), sc.body(), o.gnss, rng_gnss);
 	LidarSimulator lidar(sc.world(), sc.body(), o.lidar, sc.lidarSeed(),
 	                     o.run.threads);
+	// Injected faults change the recorded streams only (ground truth stays).
+	const double t_first = lidar.scanCount() ? lidar.scanTime(0) : 0.0;
+	applyImuFaults(o.faults, t_first, imu);
+	applyGnssFaults(o.faults, t_first, o.gnss, gnss);
+	for (const auto& f : o.faults.describe())
+		FS_LOG_INFO("forest-sim: injecting fault: " << f);
 	res.setup_wall_s = wallNow() - wall0;
 	FS_LOG_INFO("forest-sim: "
 	            << res.stats.trees << " trees, " << res.stats.saplings
@@ -237,19 +244,30 @@ RunResult runSimulation(const SimOptions& opts, const RunRequest& req)
 	{
 		const double t_k = lidar.scanTime(k);
 		flushRawlog(t_k + 1e-9);
-		const double c0 = wallNow();
-		const auto scan = lidar.scan(k);
-		res.lidar_wall_s += wallNow() - c0;
-		for (int r = 0; r < scan->rangeImage.rows(); r++)
-			for (int c = 0; c < scan->rangeImage.cols(); c++)
-				res.points += scan->rangeImage(r, c) != 0;
-		rawlog.write(*scan);
-		if (bag)
+		// Relative time from the index: exact, unlike a difference of
+		// absolute stamps near 1.7e9 s.
+		const ScanFault fault = scanFault(o.faults, k * period, period);
+		if (fault != ScanFault::Drop)
 		{
-			flushBag(t_k + period - 1e-9);
-			bag->writeScan(*scan, t_k + period);
+			const double c0 = wallNow();
+			const auto scan = lidar.scan(k);
+			res.lidar_wall_s += wallNow() - c0;
+			applyScanFault(fault, *scan);
+			for (int r = 0; r < scan->rangeImage.rows(); r++)
+				for (int c = 0; c < scan->rangeImage.cols(); c++)
+					res.points += scan->rangeImage(r, c) != 0;
+			const int copies = fault == ScanFault::Duplicate ? 2 : 1;
+			for (int i = 0; i < copies; i++)
+			{
+				rawlog.write(*scan);
+				if (bag)
+				{
+					flushBag(t_k + period - 1e-9);
+					bag->writeScan(*scan, t_k + period);
+				}
+				res.scans++;
+			}
 		}
-		res.scans++;
 		progress.update(res.scans, double(k + 1) / lidar.scanCount(),
 		                t_k - sc.body().startTime());
 	}

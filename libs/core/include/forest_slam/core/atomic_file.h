@@ -5,6 +5,7 @@
 #include <fstream>
 #include <functional>
 #include <string>
+#include <vector>
 
 namespace forest_slam::core
 {
@@ -40,6 +41,12 @@ void writeFileAtomically(const std::string& path,
  * write to tempPathFor(p), then commitTempFile(p). */
 std::string tempPathFor(const std::string& path);
 void commitTempFile(const std::string& path);
+
+/** Removes the temporary files ("<name>.tmp.<pid>") that a process killed
+ * while writing (kill -9, power loss) left in `dir`: those whose process no
+ * longer runs. Returns the paths removed. The final files were never
+ * touched by such a writer, so nothing else needs repair. */
+std::vector<std::string> removeStaleTempFiles(const std::string& dir);
 
 /** Creates a directory (and parents); throws naming the path on failure. */
 void ensureDirectory(const std::string& dir);

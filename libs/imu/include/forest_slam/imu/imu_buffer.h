@@ -23,7 +23,7 @@ struct ImuSample
 class ImuBuffer
 {
    public:
-	explicit ImuBuffer(const AttitudeOptions& o = {}) : filter_(o) {}
+	explicit ImuBuffer(const AttitudeOptions& o = {}) : kp_(o.kp), filter_(o) {}
 
 	/** Adds a sample given in the body frame. Returns false (and keeps
 	 * nothing) for a non-finite sample or one not after the previous sample:
@@ -48,7 +48,8 @@ class ImuBuffer
 	/** Gravity-aligned attitude (world <- body) from the filter at the
 	 * latest sample at or before t (or, before the filter levelled itself,
 	 * its first levelled attitude carried back with the gyro); yaw is free
-	 * and meaningless. */
+	 * and meaningless. False for the 2/kp seconds after a gap in the
+	 * samples, while the filter settles. */
 	bool attitudeAt(double t_s, Eigen::Quaterniond& q) const;
 	const AttitudeFilter& filter() const { return filter_; }
 
@@ -62,8 +63,13 @@ class ImuBuffer
 		Eigen::Quaterniond attitude;  ///< after this sample
 		Eigen::Vector3d bias;         ///< gyro bias after this sample
 		bool levelled = false;        ///< the filter was initialised
+		bool settling = false;        ///< shortly after a gap: not trusted
 	};
+	/** Longest step integrated by the filter; a longer one is a gap. */
+	static constexpr double kMaxStep_s = 0.1;
+	double settle_until_s_ = -1e300;
 	std::deque<Entry> samples_;
+	double kp_;
 	AttitudeFilter filter_;
 };
 

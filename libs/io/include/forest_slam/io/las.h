@@ -21,6 +21,9 @@ struct PointCloudFile
 	std::vector<uint8_t> classification;
 	std::vector<double> gps_time_s;
 	std::vector<float> scan_angle_deg;	///< LAS: scan angle (rank)
+	/** Read with `partial`: empty for a whole file, else what was cut off
+	 * (file, byte offset, records read) — the points before it are kept. */
+	std::string damage;
 
 	size_t size() const { return xyz.size(); }
 };
@@ -36,7 +39,14 @@ class CloudFileError : public std::runtime_error
 /** LAS 1.2–1.4, point data formats 0–3 and 6–8 (extra bytes per record are
  * skipped). Intensity and classification are always filled; GPS time for
  * formats 1, 3, 6, 7, 8. */
-PointCloudFile readLas(const std::string& path);
+PointCloudFile readLas(const std::string& path, bool partial = false);
+
+/** The LAS reader on bytes in memory (`name` labels errors); readLas and
+ * the fuzz target (tests/fuzz) go through it. With `partial`, a point block
+ * cut short yields the complete records before the cut and sets `damage`
+ * instead of throwing. */
+PointCloudFile parseLas(const std::vector<char>& bytes, const std::string& name,
+                        bool partial = false);
 
 struct LasWriteOptions
 {
@@ -75,6 +85,6 @@ PointCloudFile readPly(const std::string& path);
 PointCloudFile readPcd(const std::string& path);
 
 /** Dispatches on the extension (.las, .ply, .pcd, case-insensitive). */
-PointCloudFile readCloudFile(const std::string& path);
+PointCloudFile readCloudFile(const std::string& path, bool partial = false);
 
 }  // namespace forest_slam::io

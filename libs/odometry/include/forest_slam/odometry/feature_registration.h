@@ -115,6 +115,11 @@ struct RegistrationResult
 	 * directions the geometry does not constrain (degeneracy). */
 	Eigen::Matrix<double, 6, 1> information_eigenvalues =
 	    Eigen::Matrix<double, 6, 1>::Zero();
+	/** The 6x6 normal matrix itself, in the update's parameterisation
+	 * [rotation (left, rad), translation (m)]: its weak eigenvectors are the
+	 * degenerate directions (degeneracy.h). */
+	Eigen::Matrix<double, 6, 6> information =
+	    Eigen::Matrix<double, 6, 6>::Zero();
 };
 
 /** Optional priors of a registration. */

@@ -35,6 +35,10 @@ struct OdometryOptions : public mrpt::config::CLoadableOptions
 	/** Smallest information eigenvalue relative to the largest below which
 	 * the scan is reported degenerate. */
 	double degeneracy_ratio = 1e-3;
+	/** In a degenerate scan, directions whose information is below this
+	 * fraction of the largest keep the prediction (IMU rotation + constant
+	 * velocity) instead of the registration (degeneracy.h); 0 disables. */
+	double degenerate_hold_ratio = 0.05;
 
 	void loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 	                        const std::string& section) override;

@@ -8,6 +8,7 @@
 #include <forest_slam/map/forest_map.h>
 #include <forest_slam/outputs/run_collector.h>
 #include <forest_slam/pipeline/mapping_config.h>
+#include <forest_slam/pipeline/stream_checks.h>
 #include <forest_slam/trees/tree_layer.h>
 #include <mrpt/obs/CObservation.h>
 
@@ -41,6 +42,12 @@ struct RunStats
 	uint64_t scans_imu = 0;	 ///< odometry: IMU rotation used for prediction + deskew
 	uint64_t imu = 0, gnss = 0, other = 0;
 	uint64_t imu_rejected = 0;  ///< non-finite or not after the previous sample
+	uint64_t scans_duplicate =
+	    0;  ///< same time as the previous scan (also out of order)
+	uint64_t points_nonfinite = 0;  ///< NaN/inf points dropped
+	uint64_t lidar_gaps = 0,
+	         imu_gaps = 0;       ///< stalls of the stream (stream_checks.h)
+	uint64_t gnss_rejected = 0;  ///< fixes that jumped (GnssJumpCheck)
 	/** Odometry per-stage milliseconds, one entry per scan. */
 	std::vector<odometry::ScanTiming> stage_ms;
 	/** Tree layer milliseconds, one entry per mapped scan (store + the
@@ -104,6 +111,11 @@ class MappingPipeline
 	RunStats stats_;
 	bool have_last_scan_ = false;
 	double last_scan_stamp_s_ = 0;
+	// Stream plausibility (stream_checks.h): gaps are logged once, named
+	// with their time; jumping GNSS fixes are logged and not used.
+	GapDetector scan_gaps_{5.0, 0.5}, imu_gaps_{10.0, 0.1};
+	GnssJumpCheck gnss_check_;
+	void checkGnss(const mrpt::obs::CObservation& gnss);
 	// Static pose source: gravity from the IMU samples seen before the first
 	// scan levels the map frame (z up); frozen at the first scan.
 	Eigen::Vector3d gravity_sum_vehicle_ = Eigen::Vector3d::Zero();
@@ -140,6 +152,10 @@ class MappingPipeline
 	                     core::ScanPoints& pts);
 
 	void processScan(const mrpt::obs::CObservationRotatingScan& scan);
+	/** Removes NaN/inf points (logged once); false if none is left. */
+	bool dropNonFinite(core::ScanPoints& pts);
+	/** "t=... s (x s into the run)" for the log. */
+	std::string when(double t_s) const;
 
 	// Tree layer hook (tree_layer_hook.cpp): every mapped scan's points in
 	// the map frame feed the layer, which updates map_'s trees.

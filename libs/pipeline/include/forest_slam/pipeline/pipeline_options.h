@@ -27,6 +27,11 @@ struct PipelineOptions : public mrpt::config::CLoadableOptions
 	double max_range_m = 80.0;
 	/** Deskew: move every point with the pose at its own firing time. */
 	bool deskew = true;
+	/** GNSS fixes farther from the last accepted fix than
+	 * gnss_max_speed_mps * dt + gnss_jump_tolerance_m are jumps: logged and
+	 * not used (doc/reliability.md). */
+	double gnss_max_speed_mps = 20.0;
+	double gnss_jump_tolerance_m = 20.0;
 
 	void loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 							const std::string& section) override;

@@ -2,6 +2,7 @@
 // Every parameter of a simulated run, one INI section per struct. Defaults
 // are those of the handheld scenario; doc/simulator.md lists every key.
 #include <forest_slam/core/config.h>
+#include <forest_slam/sim/faults.h>
 
 #include <mrpt/config/CLoadableOptions.h>
 #include <mrpt/poses/CPose3D.h>
@@ -282,6 +283,7 @@ struct SimOptions
 	ImuOptions imu;
 	GnssOptions gnss;
 	OutputOptions output;
+	FaultOptions faults;  ///< [faults], faults.h
 
 	/** Loads every section and rejects unknown keys (ConfigError naming
 	 * file/section/key) and values out of their valid range. The

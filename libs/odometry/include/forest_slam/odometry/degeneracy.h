@@ -1,0 +1,37 @@
+#pragma once
+// Where the lidar alone cannot be trusted, the motion model (IMU rotation +
+// constant velocity) carries the pose (doc/reliability.md):
+// - degenerate places (an open field, a straight trail): the registration
+//   has no information along some directions, and whatever it returns there
+//   is noise that the constant-velocity model would then carry on. The
+//   estimate keeps the registration only along the directions the geometry
+//   constrains and the prediction along the others ("solution remapping",
+//   Zhang, Kaess & Singh, ICRA 2016);
+// - gaps in the scans: the prediction bends with the IMU's turn.
+#include <Eigen/Geometry>
+
+#include <functional>
+
+namespace forest_slam::odometry
+{
+/** `estimate` with its difference from `predicted` projected onto the
+ * eigenvectors of `information` (6x6, [rotation, translation] as
+ * RegistrationResult::information) whose eigenvalue is at least
+ * `ratio` times the largest. Returns `estimate` when no direction is weak.
+ * `weak_directions` (optional) gets how many were removed. */
+Eigen::Isometry3d remapDegenerate(
+    const Eigen::Isometry3d& predicted, const Eigen::Isometry3d& estimate,
+    const Eigen::Matrix<double, 6, 6>& information, double ratio,
+    int* weak_directions = nullptr);
+
+/** Motion from t0 to t1 across a gap in the scans (t1 - t0 several scan
+ * periods): `velocity` (the relative motion over one `period_s`, body frame)
+ * is applied period by period, each step's rotation replaced by the IMU's
+ * (`rotation(a, b)`: body at b in the frame at a), so the path bends with
+ * the measured turn. */
+Eigen::Isometry3d predictAcrossGap(
+    const Eigen::Isometry3d& velocity, double period_s, double t0_s,
+    double t1_s,
+    const std::function<Eigen::Matrix3d(double, double)>& rotation);
+
+}  // namespace forest_slam::odometry
