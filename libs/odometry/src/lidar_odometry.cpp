@@ -277,18 +277,26 @@ OdometryStep LidarOdometry::processScan(const core::ScanPoints& scan)
 		{
 			pose = r.T;
 			step.registered = true;
-			// Degenerate place: the prediction holds the weak directions.
-			if (step.degenerate && cfg_.odometry.degenerate_hold_ratio > 0)
+			// Degenerate place: the prediction holds the weak directions,
+			// if its velocity came from well-constrained scans (a wrong
+			// one would be carried on unchecked).
+			if (step.degenerate && velocity_trusted_ &&
+			    cfg_.odometry.degenerate_hold_ratio > 0)
 				pose = remapDegenerate(predicted, r.T, r.information,
 				                       cfg_.odometry.degenerate_hold_ratio);
+			else
+				velocity_trusted_ = !step.degenerate && scans_ >= 2;
 		}
 		else
+		{
+			velocity_trusted_ = false;
 			core::logOnce(
 			    core::LogLevel::Warn, "odometry-few-matches",
 			    "scan at t=" + std::to_string(stamp) + " s: only " +
 			        std::to_string(r.edge_matches + r.planar_matches) +
 			        " feature matches; the motion model carries the pose "
 			        "(further such scans counted in the summary)");
+		}
 		if (step.degenerate)
 			core::logOnce(
 			    core::LogLevel::Warn, "odometry-degenerate",

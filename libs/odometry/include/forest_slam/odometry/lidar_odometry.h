@@ -153,6 +153,10 @@ class LidarOdometry
 	ground::GroundLattice lattice_;
 	Eigen::Isometry3d initial_pose_ = Eigen::Isometry3d::Identity();
 	Eigen::Isometry3d last_pose_ = Eigen::Isometry3d::Identity();
+	/** velocity_ comes from well-constrained registrations (or was held
+	 * through a degenerate stretch that followed them): only then may the
+	 * prediction hold a degenerate scan's weak directions. */
+	bool velocity_trusted_ = false;
 	Eigen::Isometry3d velocity_ =
 	    Eigen::Isometry3d::Identity();  ///< per scan period
 	double last_stamp_s_ = 0, last_period_s_ = 0.1;
