@@ -17,11 +17,12 @@ bool ImuBuffer::add(double t_s, const Eigen::Vector3d& gyro,
 	e.s.acc = acc;
 	// A gap (IMU stall) is not integrated through the filter: it restarts
 	// the integration step from this sample. Roll and pitch changed unseen
-	// during the gap; the accelerometer pulls them back within ~2/kp, and
-	// until then the attitude is not handed out (attitudeAt: no gravity
-	// prior on a wrong "up"), the rotations between samples still are.
+	// during the gap; the accelerometer pulls them back, and for a while
+	// (2/kp, at most 2 s) the attitude is not handed out (attitudeAt: no
+	// gravity prior on a wrong "up"); the rotations between samples are.
 	const double gap = samples_.empty() ? 0.0 : t_s - samples_.back().s.t_s;
-	if (gap > kMaxStep_s) settle_until_s_ = t_s + 2.0 / std::max(0.05, kp_);
+	if (gap > kMaxStep_s)
+		settle_until_s_ = t_s + std::min(2.0, 2.0 / std::max(0.05, kp_));
 	filter_.update(e.s.gyro, e.s.acc, std::min(kMaxStep_s, gap));
 	e.settling = t_s < settle_until_s_;
 	e.attitude = filter_.attitude();

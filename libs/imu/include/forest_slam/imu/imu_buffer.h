@@ -48,8 +48,8 @@ class ImuBuffer
 	/** Gravity-aligned attitude (world <- body) from the filter at the
 	 * latest sample at or before t (or, before the filter levelled itself,
 	 * its first levelled attitude carried back with the gyro); yaw is free
-	 * and meaningless. False for the 2/kp seconds after a gap in the
-	 * samples, while the filter settles. */
+	 * and meaningless. False for 2/kp seconds (at most 2 s) after a gap in
+	 * the samples, while the filter settles. */
 	bool attitudeAt(double t_s, Eigen::Quaterniond& q) const;
 	const AttitudeFilter& filter() const { return filter_; }
 
