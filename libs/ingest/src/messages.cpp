@@ -215,25 +215,10 @@ NavSatFixMsg decodeNavSatFix(const uint8_t* data, size_t size, Wire wire)
 
 TfMsg decodeTfMessage(const uint8_t* data, size_t size, Wire wire)
 {
+	// Both wires through WireReader, like PointCloud2: ros::serialization
+	// sized the transform array from a corrupt length before checking it
+	// (fuzz_ros_messages).
 	TfMsg m;
-	if (wire == Wire::Ros1)
-	{
-		const auto r = deserializeRos1<tf2_msgs::TFMessage>(
-		    data, size, "tf2_msgs/TFMessage");
-		for (const auto& t : r.transforms)
-		{
-			TransformStampedMsg o;
-			o.header = fromRos1(t.header);
-			o.child_frame_id = t.child_frame_id;
-			o.translation = {t.transform.translation.x,
-			                 t.transform.translation.y,
-			                 t.transform.translation.z};
-			o.rotation_xyzw = {t.transform.rotation.x, t.transform.rotation.y,
-			                   t.transform.rotation.z, t.transform.rotation.w};
-			m.transforms.push_back(o);
-		}
-		return m;
-	}
 	WireReader r(data, size, wire);
 	const uint32_t n = r.arrayLength(8 + 4 + 4 + 56);
 	for (uint32_t i = 0; i < n; i++)
