@@ -412,7 +412,11 @@ TEST_F(TinyNoiseFree, GnssFixesDecodeToTheAntennaTrack)
 		ASSERT_NE(gga, nullptr);
 		ASSERT_NE(best, nullptr);
 		if (gga->fields.fix_quality == 0) continue;
-		EXPECT_EQ(best->fields.lat, gga->fields.latitude_degrees);
+		// MRPT's GNSS messages are packed: copy before binding a reference
+		// (EXPECT_EQ takes const double&; misaligned, UBSan).
+		const double best_lat = best->fields.lat,
+		             gga_lat = gga->fields.latitude_degrees;
+		EXPECT_EQ(best_lat, gga_lat);
 		mrpt::math::TPoint3D p;
 		mrpt::topography::geodeticToENU_WGS84(
 		    mrpt::topography::TGeodeticCoords(gga->fields.latitude_degrees,
