@@ -234,8 +234,7 @@ size_t extractCloudPoints(const PointCloud2Msg& m, const CloudLayout& L,
 	// No point: nothing to read (width 0 with height 4e9 looped for
 	// seconds over empty rows; fuzz_ros_messages).
 	if (n == 0) return 0;
-	if (m.point_step == 0)
-		throw DecodeError("PointCloud2 has point_step 0");
+	if (m.point_step == 0) throw DecodeError("PointCloud2 has point_step 0");
 	const uint64_t row_bytes = static_cast<uint64_t>(m.width) * m.point_step;
 	const uint64_t row_step = m.row_step ? m.row_step : row_bytes;
 	if (row_step < row_bytes)

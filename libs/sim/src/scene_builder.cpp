@@ -137,8 +137,8 @@ class StemIndex
 	{
 		// Shifted as unsigned: a left shift of a negative int64 is undefined
 		// before C++20 (UBSan, make test-asan).
-		return static_cast<int64_t>(
-		    (uint64_t(uint32_t(ix)) << 32) | uint64_t(uint32_t(iy)));
+		return static_cast<int64_t>((uint64_t(uint32_t(ix)) << 32) |
+		                            uint64_t(uint32_t(iy)));
 	}
 	double x0_, y0_, cell_;
 	std::vector<std::array<double, 3>> pts_;
