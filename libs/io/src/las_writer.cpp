@@ -47,6 +47,167 @@ double unixToAdjustedGpsTime(double unix_s)
 	return unix_s - 315964800.0 + 18.0 - 1e9;
 }
 
+struct LasStreamWriter::Impl
+{
+	std::string path;
+	uint64_t promised = 0, written = 0;
+	Eigen::Vector3d offset, qlo, qhi;
+	LasWriteOptions o;
+	core::AtomicFileWriter file;
+	Bytes header{kHeaderSize};
+	static constexpr size_t kChunk = 8192;
+	Bytes rec{kChunk * kRecordLength};
+	size_t in_chunk = 0;
+
+	Impl(const std::string& p, uint64_t n, const Eigen::Vector3d& off,
+	     const LasWriteOptions& opt)
+	    : path(p), promised(n), offset(off), o(opt), file(p, true)
+	{
+	}
+	int32_t quantize(double v, int i) const
+	{
+		const double q = std::llround((v - offset[i]) / o.scale_m);
+		if (!(q >= std::numeric_limits<int32_t>::min() &&
+		      q <= std::numeric_limits<int32_t>::max()))
+			throw CloudFileError(
+			    path +
+			    ": a coordinate lies too far from the offset for "
+			    "32-bit coordinates at scale " +
+			    std::to_string(o.scale_m) + " m");
+		return static_cast<int32_t>(q);
+	}
+	void flush()
+	{
+		file.stream().write(
+		    rec.data(), static_cast<std::streamsize>(in_chunk * kRecordLength));
+		in_chunk = 0;
+	}
+	void fillHeader()
+	{
+		Bytes& h = header;
+		h.text(0, 4, "LASF");
+		// Global encoding: bit 0 adjusted standard GPS time; bit 4 the CRS
+		// is WKT (required for point formats >= 6).
+		h.put<uint16_t>(
+		    6, static_cast<uint16_t>((o.adjusted_standard_gps_time ? 1 : 0) |
+		                             (1 << 4)));
+		h.put<uint8_t>(24, 1);
+		h.put<uint8_t>(25, 4);
+		h.text(26, 32, o.system_id);
+		h.text(58, 32, o.software);
+		const std::time_t now = std::time(nullptr);
+		std::tm utc{};
+		gmtime_r(&now, &utc);
+		h.put<uint16_t>(90, static_cast<uint16_t>(utc.tm_yday + 1));
+		h.put<uint16_t>(92, static_cast<uint16_t>(utc.tm_year + 1900));
+		h.put<uint16_t>(94, kHeaderSize);
+		const bool wkt = !o.wkt.empty();
+		const uint32_t point_offset =
+		    kHeaderSize +
+		    (wkt ? kVlrHeaderSize + static_cast<uint32_t>(o.wkt.size() + 1)
+		         : 0);
+		h.put<uint32_t>(96, point_offset);
+		h.put<uint32_t>(100, wkt ? 1 : 0);  // number of VLRs
+		h.put<uint8_t>(104, 6);
+		h.put<uint16_t>(105, kRecordLength);
+		// 107: legacy point count, 111: legacy counts by return: 0 (format
+		// 6).
+		for (int i = 0; i < 3; i++)
+		{
+			h.put<double>(131 + 8 * i, o.scale_m);
+			h.put<double>(155 + 8 * i, offset[i]);
+			h.put<double>(179 + 16 * i, written ? qhi[i] : 0.0);  // max
+			h.put<double>(187 + 16 * i, written ? qlo[i] : 0.0);  // min
+		}
+		// 227 waveform start, 235 first EVLR, 243 EVLR count: none.
+		h.put<uint64_t>(247, promised);
+		h.put<uint64_t>(255, promised);  // every point is return 1 of 1
+		// 263..375: points of returns 2..15: 0.
+	}
+};
+
+LasStreamWriter::LasStreamWriter(const std::string& path, uint64_t points,
+                                 const Eigen::Vector3d& offset,
+                                 const LasWriteOptions& o)
+{
+	if (!(o.scale_m > 0)) throw CloudFileError(path + ": scale must be > 0");
+	if (!offset.allFinite())
+		throw CloudFileError(path + ": non-finite coordinate offset");
+	const size_t wkt_len = o.wkt.size() + 1;  // null-terminated
+	if (!o.wkt.empty() && wkt_len > std::numeric_limits<uint16_t>::max())
+		throw CloudFileError(path + ": WKT longer than a VLR can hold");
+	impl_ = new Impl(path, points, offset, o);
+	impl_->fillHeader();  // bounds rewritten by commit()
+	auto& os = impl_->file.stream();
+	os.write(impl_->header.data(),
+	         static_cast<std::streamsize>(impl_->header.size()));
+	if (!o.wkt.empty())
+	{
+		Bytes v(kVlrHeaderSize);
+		v.text(2, 16, "LASF_Projection");
+		v.put<uint16_t>(18, 2112);
+		v.put<uint16_t>(20, static_cast<uint16_t>(wkt_len));
+		v.text(22, 32, "OGC coordinate system WKT");
+		os.write(v.data(), static_cast<std::streamsize>(v.size()));
+		os.write(o.wkt.c_str(), static_cast<std::streamsize>(wkt_len));
+	}
+}
+
+LasStreamWriter::~LasStreamWriter()
+{
+	delete impl_;
+}
+
+void LasStreamWriter::add(const Eigen::Vector3d& p, uint16_t intensity,
+                          uint8_t classification, float scan_angle_deg,
+                          double gps_time_s)
+{
+	Impl& m = *impl_;
+	if (!p.allFinite())
+		throw CloudFileError(m.path + ": non-finite coordinate");
+	if (m.written == m.promised)
+		throw CloudFileError(m.path + ": more points than the " +
+		                     std::to_string(m.promised) + " announced");
+	const size_t r = m.in_chunk * kRecordLength;
+	for (int i = 0; i < 3; i++)
+	{
+		const int32_t q = m.quantize(p[i], i);
+		m.rec.put<int32_t>(r + 4 * i, q);
+		// Header bounds are those of the stored (quantized) coordinates.
+		const double v = q * m.o.scale_m + m.offset[i];
+		if (m.written == 0 || v < m.qlo[i]) m.qlo[i] = v;
+		if (m.written == 0 || v > m.qhi[i]) m.qhi[i] = v;
+	}
+	m.rec.put<uint16_t>(r + 12, intensity);
+	m.rec.put<uint8_t>(r + 14, 0x11);  // return 1 of 1
+	m.rec.put<uint8_t>(r + 15, 0);     // flags, channel, direction, edge
+	m.rec.put<uint8_t>(r + 16, classification);
+	m.rec.put<uint8_t>(r + 17, 0);  // user data
+	m.rec.put<int16_t>(
+	    r + 18, static_cast<int16_t>(std::clamp(
+	                std::lround(scan_angle_deg / 0.006), -30000L, 30000L)));
+	m.rec.put<uint16_t>(r + 20, 0);  // point source id
+	m.rec.put<double>(r + 22, gps_time_s);
+	m.written++;
+	if (++m.in_chunk == Impl::kChunk) m.flush();
+}
+
+void LasStreamWriter::commit()
+{
+	Impl& m = *impl_;
+	if (m.written != m.promised)
+		throw CloudFileError(m.path + ": " + std::to_string(m.written) +
+		                     " points written, " + std::to_string(m.promised) +
+		                     " announced");
+	m.flush();
+	m.fillHeader();
+	auto& os = m.file.stream();
+	os.seekp(0);
+	os.write(m.header.data(), static_cast<std::streamsize>(m.header.size()));
+	os.seekp(0, std::ios::end);
+	m.file.commit();
+}
+
 void writeLas(const std::string& path, const PointCloudFile& c,
               const LasWriteOptions& o)
 {
@@ -66,7 +227,7 @@ void writeLas(const std::string& path, const PointCloudFile& c,
 
 	// Offsets: the minimum rounded down to a metre, so coordinates stay
 	// readable and the integers small.
-	Eigen::Vector3d lo = Eigen::Vector3d::Zero(), hi = lo, offset = lo;
+	Eigen::Vector3d lo = Eigen::Vector3d::Zero(), hi = lo;
 	if (n > 0)
 	{
 		lo = hi = c.xyz[0];
@@ -77,8 +238,8 @@ void writeLas(const std::string& path, const PointCloudFile& c,
 			lo = lo.cwiseMin(p);
 			hi = hi.cwiseMax(p);
 		}
-		offset = lo.array().floor();
-		const double span = (hi - offset).maxCoeff() / o.scale_m;
+		const double span =
+		    (hi - LasStreamWriter::offsetFor(lo)).maxCoeff() / o.scale_m;
 		if (span > std::numeric_limits<int32_t>::max())
 			throw CloudFileError(
 			    path + ": the cloud spans " +
@@ -86,103 +247,13 @@ void writeLas(const std::string& path, const PointCloudFile& c,
 			    " m, too much for 32-bit coordinates at scale " +
 			    std::to_string(o.scale_m) + " m");
 	}
-	const auto quantize = [&](const Eigen::Vector3d& p, int i) {
-		return static_cast<int32_t>(
-		    std::llround((p[i] - offset[i]) / o.scale_m));
-	};
-	// Header bounds are those of the stored (quantized) coordinates.
-	Eigen::Vector3d qlo = Eigen::Vector3d::Zero(), qhi = qlo;
+	LasStreamWriter w(path, n, n > 0 ? LasStreamWriter::offsetFor(lo) : lo, o);
 	for (size_t k = 0; k < n; k++)
-		for (int i = 0; i < 3; i++)
-		{
-			const double v = quantize(c.xyz[k], i) * o.scale_m + offset[i];
-			if (k == 0 || v < qlo[i]) qlo[i] = v;
-			if (k == 0 || v > qhi[i]) qhi[i] = v;
-		}
-
-	const bool wkt = !o.wkt.empty();
-	const size_t wkt_len = o.wkt.size() + 1;  // null-terminated
-	if (wkt_len > std::numeric_limits<uint16_t>::max())
-		throw CloudFileError(path + ": WKT longer than a VLR can hold");
-	const uint32_t point_offset =
-	    kHeaderSize +
-	    (wkt ? kVlrHeaderSize + static_cast<uint32_t>(wkt_len) : 0);
-
-	Bytes h(kHeaderSize);
-	h.text(0, 4, "LASF");
-	// Global encoding: bit 0 adjusted standard GPS time; bit 4 the CRS is
-	// WKT (required for point formats >= 6).
-	h.put<uint16_t>(6, static_cast<uint16_t>(
-	                       (o.adjusted_standard_gps_time ? 1 : 0) | (1 << 4)));
-	h.put<uint8_t>(24, 1);
-	h.put<uint8_t>(25, 4);
-	h.text(26, 32, o.system_id);
-	h.text(58, 32, o.software);
-	const std::time_t now = std::time(nullptr);
-	std::tm utc{};
-	gmtime_r(&now, &utc);
-	h.put<uint16_t>(90, static_cast<uint16_t>(utc.tm_yday + 1));
-	h.put<uint16_t>(92, static_cast<uint16_t>(utc.tm_year + 1900));
-	h.put<uint16_t>(94, kHeaderSize);
-	h.put<uint32_t>(96, point_offset);
-	h.put<uint32_t>(100, wkt ? 1 : 0);  // number of VLRs
-	h.put<uint8_t>(104, 6);
-	h.put<uint16_t>(105, kRecordLength);
-	// 107: legacy point count, 111: legacy counts by return: 0 (format 6).
-	for (int i = 0; i < 3; i++)
-	{
-		h.put<double>(131 + 8 * i, o.scale_m);
-		h.put<double>(155 + 8 * i, offset[i]);
-		h.put<double>(179 + 16 * i, qhi[i]);  // max x, max y, max z
-		h.put<double>(187 + 16 * i, qlo[i]);  // min ...
-	}
-	// 227 waveform start, 235 first EVLR, 243 EVLR count: none.
-	h.put<uint64_t>(247, n);
-	h.put<uint64_t>(255, n);  // every point is return 1 of 1
-	// 263..375: points of returns 2..15: 0.
-
-	core::AtomicFileWriter file(path, true);
-	auto& os = file.stream();
-	os.write(h.data(), static_cast<std::streamsize>(h.size()));
-	if (wkt)
-	{
-		Bytes v(kVlrHeaderSize);
-		v.text(2, 16, "LASF_Projection");
-		v.put<uint16_t>(18, 2112);
-		v.put<uint16_t>(20, static_cast<uint16_t>(wkt_len));
-		v.text(22, 32, "OGC coordinate system WKT");
-		os.write(v.data(), static_cast<std::streamsize>(v.size()));
-		os.write(o.wkt.c_str(), static_cast<std::streamsize>(wkt_len));
-	}
-	constexpr size_t kChunk = 8192;
-	Bytes rec(kChunk * kRecordLength);
-	for (size_t k0 = 0; k0 < n; k0 += kChunk)
-	{
-		const size_t m = std::min(kChunk, n - k0);
-		for (size_t j = 0; j < m; j++)
-		{
-			const size_t k = k0 + j, r = j * kRecordLength;
-			rec.put<int32_t>(r, quantize(c.xyz[k], 0));
-			rec.put<int32_t>(r + 4, quantize(c.xyz[k], 1));
-			rec.put<int32_t>(r + 8, quantize(c.xyz[k], 2));
-			rec.put<uint16_t>(r + 12, c.intensity.empty() ? 0 : c.intensity[k]);
-			rec.put<uint8_t>(r + 14, 0x11);  // return 1 of 1
-			rec.put<uint8_t>(r + 15, 0);     // flags, channel, direction, edge
-			rec.put<uint8_t>(
-			    r + 16, c.classification.empty() ? 1 : c.classification[k]);
-			rec.put<uint8_t>(r + 17, 0);  // user data
-			const double a =
-			    c.scan_angle_deg.empty() ? 0.0 : c.scan_angle_deg[k];
-			rec.put<int16_t>(
-			    r + 18, static_cast<int16_t>(std::clamp(std::lround(a / 0.006),
-			                                            -30000L, 30000L)));
-			rec.put<uint16_t>(r + 20, 0);  // point source id
-			rec.put<double>(r + 22,
-			                c.gps_time_s.empty() ? 0.0 : c.gps_time_s[k]);
-		}
-		os.write(rec.data(), static_cast<std::streamsize>(m * kRecordLength));
-	}
-	file.commit();
+		w.add(c.xyz[k], c.intensity.empty() ? 0 : c.intensity[k],
+		      c.classification.empty() ? 1 : c.classification[k],
+		      c.scan_angle_deg.empty() ? 0.0f : c.scan_angle_deg[k],
+		      c.gps_time_s.empty() ? 0.0 : c.gps_time_s[k]);
+	w.commit();
 }
 
 }  // namespace forest_slam::io

@@ -35,6 +35,7 @@ BackEnd::~BackEnd()
 size_t BackEnd::addKeyframe(Keyframe kf)
 {
 	Item it;
+	cloud_bytes_ += kf.cloud.capacity() * sizeof(Eigen::Vector3f);
 	{
 		std::lock_guard<std::mutex> lk(mutex_);
 		kf.id = next_id_++;

@@ -1,5 +1,6 @@
 #include <forest_slam/core/atomic_file.h>
 #include <forest_slam/core/config.h>
+#include <forest_slam/core/memory.h>
 #include <forest_slam/core/scan_points.h>
 #include <forest_slam/map/forest_map.h>
 
@@ -24,14 +25,17 @@ IMPLEMENTS_SERIALIZABLE(CForestMap, CMetricMap, forest_slam::map)
 
 // Factory names: the fully qualified C++ name and the short INI prefix used
 // in CMultiMetricMap sections ("forestMap_count=1").
-MAP_DEFINITION_REGISTER("forest_slam::map::CForestMap,forestMap", forest_slam::map::CForestMap)
+MAP_DEFINITION_REGISTER("forest_slam::map::CForestMap,forestMap",
+                        forest_slam::map::CForestMap)
 
 namespace forest_slam::map
 {
 void registerForestMapClasses()
 {
 	static std::once_flag once;
-	std::call_once(once, [] {
+	std::call_once(once,
+	               []
+	               {
 		mrpt::rtti::registerClass(CLASS_ID(CForestMap));
 		(void)CForestMap::m_private_map_register_id;
 	});
@@ -45,8 +49,8 @@ const bool g_registered = (registerForestMapClasses(), true);
 Eigen::Isometry3d toIsometry(const mrpt::poses::CPose3D& p)
 {
 	Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-	T.matrix() = p.getHomogeneousMatrixVal<mrpt::math::CMatrixDouble44>()
-					 .asEigen();
+	T.matrix() =
+	    p.getHomogeneousMatrixVal<mrpt::math::CMatrixDouble44>().asEigen();
 	return T;
 }
 
@@ -107,13 +111,13 @@ void ForestMapOptions::loadFromConfigFile(
 	}
 	catch (const std::invalid_argument& e)
 	{
-		throw core::ConfigError(
-			core::configOrigin(c) + ": [" + s + "] " + e.what());
+		throw core::ConfigError(core::configOrigin(c) + ": [" + s + "] " +
+		                        e.what());
 	}
 }
 
-void ForestMapOptions::saveToConfigFile(
-	mrpt::config::CConfigFileBase& c, const std::string& s) const
+void ForestMapOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
+                                        const std::string& s) const
 {
 	c.write(s, "submap_size_m", submap_size_m);
 	c.write(s, "edge_voxel_m", edge_voxel_m);
@@ -127,7 +131,8 @@ void ForestMapOptions::saveToConfigFile(
 
 void ForestMapOptions::validate() const
 {
-	auto positive = [](double v, const char* name) {
+	auto positive = [](double v, const char* name)
+	{
 		if (!(v > 0))
 			throw std::invalid_argument(
 				std::string(name) + " must be > 0, got " + std::to_string(v));
@@ -172,7 +177,10 @@ mrpt::maps::CMetricMap* CForestMap::internal_CreateFromMapDefinition(
 }
 
 // ------------------------------------------------------------- the map
-CForestMap::CForestMap(const TOptions& opts) : opts_(opts) { opts_.validate(); }
+CForestMap::CForestMap(const TOptions& opts) : opts_(opts)
+{
+	opts_.validate();
+}
 
 void CForestMap::setOptions(const TOptions& opts)
 {
@@ -234,8 +242,8 @@ void CForestMap::insertFeatures(
 	markDirty();
 }
 
-std::vector<SubmapKey> CForestMap::submapsNear(
-	const Eigen::Vector3d& c, double r) const
+std::vector<SubmapKey> CForestMap::submapsNear(const Eigen::Vector3d& c,
+                                               double r) const
 {
 	std::vector<SubmapKey> keys;
 	const double s = opts_.submap_size_m;
@@ -254,8 +262,10 @@ std::vector<SubmapKey> CForestMap::submapsNear(
 				{
 					const double lo_a = idx[a] * s, hi_a = lo_a + s;
 					const double v = c[a];
-					if (v < lo_a) d2 += (lo_a - v) * (lo_a - v);
-					else if (v > hi_a) d2 += (v - hi_a) * (v - hi_a);
+					if (v < lo_a)
+						d2 += (lo_a - v) * (lo_a - v);
+					else if (v > hi_a)
+						d2 += (v - hi_a) * (v - hi_a);
 				}
 				if (d2 <= r * r) keys.push_back(k);
 			}
@@ -276,6 +286,14 @@ void CForestMap::collectNear(const Eigen::Vector3d& centre, double radius_m,
 	}
 }
 
+size_t CForestMap::memoryBytes() const
+{
+	size_t n = core::hashMapBytes(submaps_);
+	for (const auto& kv : submaps_)
+		n += kv.second.edge.memoryBytes() + kv.second.planar.memoryBytes();
+	return n;
+}
+
 size_t CForestMap::edgePointCount() const
 {
 	size_t n = 0;
@@ -292,11 +310,15 @@ size_t CForestMap::planarPointCount() const
 mrpt::math::TBoundingBoxf CForestMap::boundingBox() const
 {
 	const auto* pts = getAsSimplePointsMap();
-	if (!pts || pts->empty()) return mrpt::math::TBoundingBoxf({0, 0, 0}, {0, 0, 0});
+	if (!pts || pts->empty())
+		return mrpt::math::TBoundingBoxf({0, 0, 0}, {0, 0, 0});
 	return pts->boundingBox();
 }
 
-bool CForestMap::isEmpty() const { return submaps_.empty() && trees_.empty(); }
+bool CForestMap::isEmpty() const
+{
+	return submaps_.empty() && trees_.empty();
+}
 
 void CForestMap::internal_clear()
 {
@@ -332,8 +354,8 @@ bool CForestMap::internal_insertObservation(
 	const mrpt::poses::CPose3D robot =
 		robotPose ? *robotPose : mrpt::poses::CPose3D();
 	const Eigen::Isometry3d T = toIsometry(robot + sensor_pose);
-	const float max_r2 = static_cast<float>(
-		opts_.max_insert_range_m * opts_.max_insert_range_m);
+	const float max_r2 =
+	    static_cast<float>(opts_.max_insert_range_m * opts_.max_insert_range_m);
 
 	std::vector<Eigen::Vector3f> edges, planar;
 	for (auto& ring : rings)
@@ -344,8 +366,8 @@ bool CForestMap::internal_insertObservation(
 			if (p.allFinite() && p.squaredNorm() <= max_r2) kept.push_back(p);
 		if (rings.size() > 1)
 		{
-			const auto flags = smoothnessEdgeFlags(
-				kept, opts_.smoothness_half_window,
+			const auto flags =
+			    smoothnessEdgeFlags(kept, opts_.smoothness_half_window,
 				opts_.edge_smoothness_threshold);
 			for (size_t i = 0; i < kept.size(); i++)
 				(flags[i] ? edges : planar).push_back(kept[i]);
@@ -366,12 +388,14 @@ bool CForestMap::internal_canComputeObservationLikelihood(
 }
 
 double CForestMap::internal_computeObservationLikelihood(
-	const mrpt::obs::CObservation& obs, const mrpt::poses::CPose3D& takenFrom) const
+    const mrpt::obs::CObservation& obs,
+    const mrpt::poses::CPose3D& takenFrom) const
 {
 	std::vector<std::vector<Eigen::Vector3f>> rings;
 	mrpt::poses::CPose3D sensor_pose;
 	if (!observationPoints(obs, rings, sensor_pose)) return 0;
-	const Eigen::Isometry3f T = toIsometry(takenFrom + sensor_pose).cast<float>();
+	const Eigen::Isometry3f T =
+	    toIsometry(takenFrom + sensor_pose).cast<float>();
 	const double inv_2s2 =
 		1.0 / (2 * opts_.likelihood_sigma_m * opts_.likelihood_sigma_m);
 	// Far from any centroid, a point contributes this floor (robustness).
@@ -389,8 +413,10 @@ double CForestMap::internal_computeObservationLikelihood(
 			{
 				Eigen::Vector3f c;
 				float d2;
-				if (it->second.planar.nearestAround(q, c, d2)) best = std::min<double>(best, d2);
-				if (it->second.edge.nearestAround(q, c, d2)) best = std::min<double>(best, d2);
+				if (it->second.planar.nearestAround(q, c, d2))
+					best = std::min<double>(best, d2);
+				if (it->second.edge.nearestAround(q, c, d2))
+					best = std::min<double>(best, d2);
 			}
 			const double lik = best < 1e30 ? std::exp(-best * inv_2s2) : 0.0;
 			log_lik += std::log(std::max(lik, floor_lik));
@@ -486,7 +512,10 @@ void CForestMap::saveMetricMapRepresentationToFile(const std::string& prefix) co
 }
 
 // -------------------------------------------------------- serialization
-uint8_t CForestMap::serializeGetVersion() const { return 0; }
+uint8_t CForestMap::serializeGetVersion() const
+{
+	return 0;
+}
 
 namespace
 {
@@ -507,9 +536,11 @@ void readCloud(mrpt::serialization::CArchive& in, VoxelCloud& c)
 	{
 		VoxelKey k;
 		VoxelCloud::Accum a;
-		in >> k.x >> k.y >> k.z >> a.sum.x() >> a.sum.y() >> a.sum.z() >> a.count;
+		in >> k.x >> k.y >> k.z >> a.sum.x() >> a.sum.y() >> a.sum.z() >>
+		    a.count;
 		if (a.count == 0)
-			throw std::runtime_error("CForestMap: corrupt voxel with zero count");
+			throw std::runtime_error(
+			    "CForestMap: corrupt voxel with zero count");
 		c.setVoxel(k, a);
 	}
 }
@@ -537,7 +568,8 @@ void CForestMap::serializeTo(mrpt::serialization::CArchive& out) const
 			<< t.quality;
 }
 
-void CForestMap::serializeFrom(mrpt::serialization::CArchive& in, uint8_t version)
+void CForestMap::serializeFrom(mrpt::serialization::CArchive& in,
+                               uint8_t version)
 {
 	if (version != 0) MRPT_THROW_UNKNOWN_SERIALIZATION_VERSION(version);
 	TOptions o;

@@ -1,3 +1,4 @@
+#include <forest_slam/core/memory.h>
 #include <forest_slam/map/voxel_cloud.h>
 
 #include <cmath>
@@ -10,11 +11,16 @@ namespace forest_slam::map
 void VoxelCloud::setVoxelSize(float s)
 {
 	if (!(s > 0) || !std::isfinite(s))
-		throw std::invalid_argument(
-			"voxel size must be > 0, got " + std::to_string(s));
+		throw std::invalid_argument("voxel size must be > 0, got " +
+		                            std::to_string(s));
 	size_ = s;
 	inv_size_ = 1.f / s;
 	voxels_.clear();
+}
+
+size_t VoxelCloud::memoryBytes() const
+{
+	return core::hashMapBytes(voxels_);
 }
 
 void VoxelCloud::insert(const Eigen::Vector3f& p)

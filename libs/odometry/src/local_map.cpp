@@ -1,4 +1,5 @@
 #include <forest_slam/core/config.h>
+#include <forest_slam/core/memory.h>
 #include <forest_slam/odometry/local_map.h>
 
 #include <Eigen/Eigenvalues>
@@ -7,6 +8,15 @@
 
 namespace forest_slam::odometry
 {
+size_t LocalMap::memoryBytes() const
+{
+	size_t n = core::hashMapBytes(planar_) + core::hashMapBytes(edges_) +
+	           core::hashMapBytes(coarse_);
+	for (const auto* g : {&planar_, &edges_})
+		for (const auto& kv : *g) n += core::vectorBytes(kv.second.pts);
+	return n;
+}
+
 void LocalMapOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
                                          const std::string& s)
 {

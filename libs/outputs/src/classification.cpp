@@ -64,65 +64,102 @@ trees::TerrainModel terrainForCloud(const std::vector<DensePoint>& pts,
 	return trees::buildDtm(xyz, tree_opts);
 }
 
+trees::TerrainModel terrainForCloud(const DenseMap& dense,
+                                    const ground::GroundLattice* lattice,
+                                    const trees::TreeOptions& tree_opts)
+{
+	if (dense.size() == 0)
+		throw std::invalid_argument("terrainForCloud: the dense map is empty");
+	if (lattice && !lattice->nodes().empty())
+	{
+		// Only the bounds matter here: a point per tile corner does.
+		std::vector<DensePoint> corners;
+		dense.forEachTile(
+		    [&](const std::vector<DensePoint>& pts)
+		    {
+			    Eigen::Vector2d lo, hi;
+			    bounds(pts, lo, hi);
+			    DensePoint a, b;
+			    a.xyz << float(lo.x()), float(lo.y()), 0.f;
+			    b.xyz << float(hi.x()), float(hi.y()), 0.f;
+			    corners.push_back(a);
+			    corners.push_back(b);
+		    });
+		return terrainForCloud(corners, lattice, tree_opts);
+	}
+	return terrainForCloud(dense.points(), nullptr, tree_opts);
+}
+
+namespace
+{
+uint64_t stemCellKey(int64_t i, int64_t j)
+{
+	return (static_cast<uint64_t>(i + (1 << 30)) << 32) |
+	       static_cast<uint64_t>(j + (1 << 30));
+}
+constexpr double kStemCell = 1.0;
+}  // namespace
+
+PointClassifier::PointClassifier(const trees::TerrainModel& terrain,
+                                 const std::vector<map::TreeRecord>& trees,
+                                 const OutputOptions& o)
+    : terrain_(terrain), trees_(trees), o_(o)
+{
+	for (size_t t = 0; t < trees.size(); t++)
+	{
+		const double r = trees[t].dbh_m / 2 + o.stem_margin_m;
+		for (int64_t i = std::floor((trees[t].x - r) / kStemCell);
+		     i <= std::floor((trees[t].x + r) / kStemCell); i++)
+			for (int64_t j = std::floor((trees[t].y - r) / kStemCell);
+			     j <= std::floor((trees[t].y + r) / kStemCell); j++)
+				stem_cells_[stemCellKey(i, j)].push_back(t);
+	}
+}
+
+uint8_t PointClassifier::classify(const Eigen::Vector3d& p) const
+{
+	if (terrain_.empty()) return kUnclassified;
+	const double g = o_.ground_threshold_m;
+	const double h = terrain_.heightAboveGround(p);
+	uint8_t c;
+	if (h < -3 * g)
+		c = kLowNoise;
+	else if (h <= g)
+		c = kGround;
+	else if (h <= o_.low_vegetation_max_m)
+		c = kLowVegetation;
+	else if (h <= o_.medium_vegetation_max_m)
+		c = kMediumVegetation;
+	else
+		c = kHighVegetation;
+	if (h > g && h <= o_.stem_max_height_m && !stem_cells_.empty())
+	{
+		const auto it = stem_cells_.find(
+		    stemCellKey(static_cast<int64_t>(std::floor(p.x() / kStemCell)),
+		                static_cast<int64_t>(std::floor(p.y() / kStemCell))));
+		if (it != stem_cells_.end())
+			for (const size_t t : it->second)
+			{
+				const double r = trees_[t].dbh_m / 2 + o_.stem_margin_m;
+				if (std::hypot(p.x() - trees_[t].x, p.y() - trees_[t].y) <= r)
+				{
+					c = static_cast<uint8_t>(o_.stem_class);
+					break;
+				}
+			}
+	}
+	return c;
+}
+
 std::vector<uint8_t> classifyPoints(const std::vector<DensePoint>& pts,
                                     const trees::TerrainModel& terrain,
                                     const std::vector<map::TreeRecord>& trees,
                                     const OutputOptions& o)
 {
-	// Stems indexed on a 1 m grid by every cell their circle + margin touches.
-	constexpr double kCell = 1.0;
-	const auto cellKey = [](int64_t i, int64_t j)
-	{
-		return (static_cast<uint64_t>(i + (1 << 30)) << 32) |
-		       static_cast<uint64_t>(j + (1 << 30));
-	};
-	std::unordered_map<uint64_t, std::vector<size_t>> stem_cells;
-	for (size_t t = 0; t < trees.size(); t++)
-	{
-		const double r = trees[t].dbh_m / 2 + o.stem_margin_m;
-		for (int64_t i = std::floor((trees[t].x - r) / kCell);
-		     i <= std::floor((trees[t].x + r) / kCell); i++)
-			for (int64_t j = std::floor((trees[t].y - r) / kCell);
-			     j <= std::floor((trees[t].y + r) / kCell); j++)
-				stem_cells[cellKey(i, j)].push_back(t);
-	}
-
+	const PointClassifier c(terrain, trees, o);
 	std::vector<uint8_t> cls(pts.size(), kUnclassified);
-	if (terrain.empty()) return cls;
-	const double g = o.ground_threshold_m;
 	for (size_t k = 0; k < pts.size(); k++)
-	{
-		const Eigen::Vector3d p = pts[k].xyz.cast<double>();
-		const double h = terrain.heightAboveGround(p);
-		uint8_t c;
-		if (h < -3 * g)
-			c = kLowNoise;
-		else if (h <= g)
-			c = kGround;
-		else if (h <= o.low_vegetation_max_m)
-			c = kLowVegetation;
-		else if (h <= o.medium_vegetation_max_m)
-			c = kMediumVegetation;
-		else
-			c = kHighVegetation;
-		if (h > g && h <= o.stem_max_height_m && !stem_cells.empty())
-		{
-			const auto it = stem_cells.find(
-			    cellKey(static_cast<int64_t>(std::floor(p.x() / kCell)),
-			            static_cast<int64_t>(std::floor(p.y() / kCell))));
-			if (it != stem_cells.end())
-				for (const size_t t : it->second)
-				{
-					const double r = trees[t].dbh_m / 2 + o.stem_margin_m;
-					if (std::hypot(p.x() - trees[t].x, p.y() - trees[t].y) <= r)
-					{
-						c = static_cast<uint8_t>(o.stem_class);
-						break;
-					}
-				}
-		}
-		cls[k] = c;
-	}
+		cls[k] = c.classify(pts[k].xyz.cast<double>());
 	return cls;
 }
 
@@ -132,44 +169,49 @@ size_t ElevationGrid::cellsWithData() const
 	                     [](double v) { return std::isfinite(v); });
 }
 
+void GroundGridBuilder::add(const Eigen::Vector3d& p)
+{
+	const int64_t ix = static_cast<int64_t>(std::floor(p.x() / cell_m_));
+	const int64_t iy = static_cast<int64_t>(std::floor(p.y() / cell_m_));
+	if (cells_.empty()) ix_lo_ = ix_hi_ = ix, iy_lo_ = iy_hi_ = iy;
+	ix_lo_ = std::min(ix_lo_, ix), ix_hi_ = std::max(ix_hi_, ix);
+	iy_lo_ = std::min(iy_lo_, iy), iy_hi_ = std::max(iy_hi_, iy);
+	Cell& c = cells_[stemCellKey(ix, iy)];
+	c.sum += p.z();
+	c.n++;
+}
+
+ElevationGrid GroundGridBuilder::grid() const
+{
+	ElevationGrid g;
+	g.cell_m = cell_m_;
+	if (cells_.empty()) return g;
+	// Corner on a multiple of the cell so grids of the same area line up.
+	g.x0 = ix_lo_ * cell_m_;
+	g.y0 = iy_lo_ * cell_m_;
+	g.nx = static_cast<int>(ix_hi_ - ix_lo_ + 1);
+	g.ny = static_cast<int>(iy_hi_ - iy_lo_ + 1);
+	g.z.assign(size_t(g.nx) * g.ny, std::numeric_limits<double>::quiet_NaN());
+	for (int64_t iy = iy_lo_; iy <= iy_hi_; iy++)
+		for (int64_t ix = ix_lo_; ix <= ix_hi_; ix++)
+		{
+			const auto it = cells_.find(stemCellKey(ix, iy));
+			if (it != cells_.end())
+				g.z[(ix - ix_lo_) + size_t(g.nx) * (iy - iy_lo_)] =
+				    it->second.sum / it->second.n;
+		}
+	return g;
+}
+
 ElevationGrid groundGrid(
     const std::vector<DensePoint>& pts, const std::vector<uint8_t>& classes,
     double cell_m,
     const std::function<Eigen::Vector3d(const Eigen::Vector3d&)>& to_output)
 {
-	std::vector<Eigen::Vector3d> ground;
+	GroundGridBuilder b(cell_m);
 	for (size_t k = 0; k < pts.size(); k++)
-		if (classes[k] == kGround)
-			ground.push_back(to_output(pts[k].xyz.cast<double>()));
-	ElevationGrid g;
-	g.cell_m = cell_m;
-	if (ground.empty()) return g;
-	Eigen::Vector2d lo = ground[0].head<2>(), hi = lo;
-	for (const auto& p : ground)
-	{
-		lo = lo.cwiseMin(p.head<2>());
-		hi = hi.cwiseMax(p.head<2>());
-	}
-	// Corner on a multiple of the cell so grids of the same area line up.
-	g.x0 = std::floor(lo.x() / cell_m) * cell_m;
-	g.y0 = std::floor(lo.y() / cell_m) * cell_m;
-	g.nx = static_cast<int>(std::floor((hi.x() - g.x0) / cell_m)) + 1;
-	g.ny = static_cast<int>(std::floor((hi.y() - g.y0) / cell_m)) + 1;
-	std::vector<double> sum(size_t(g.nx) * g.ny, 0.0);
-	std::vector<uint32_t> n(sum.size(), 0);
-	for (const auto& p : ground)
-	{
-		const int ix =
-		    std::min(g.nx - 1, static_cast<int>((p.x() - g.x0) / cell_m));
-		const int iy =
-		    std::min(g.ny - 1, static_cast<int>((p.y() - g.y0) / cell_m));
-		sum[ix + size_t(g.nx) * iy] += p.z();
-		n[ix + size_t(g.nx) * iy]++;
-	}
-	g.z.assign(sum.size(), std::numeric_limits<double>::quiet_NaN());
-	for (size_t i = 0; i < sum.size(); i++)
-		if (n[i] > 0) g.z[i] = sum[i] / n[i];
-	return g;
+		if (classes[k] == kGround) b.add(to_output(pts[k].xyz.cast<double>()));
+	return b.grid();
 }
 
 void writeEsriAscii(const std::string& path, const ElevationGrid& g)

@@ -1,3 +1,4 @@
+#include <forest_slam/core/memory.h>
 #include <forest_slam/outputs/dense_map.h>
 
 #include <sys/mman.h>
@@ -12,6 +13,8 @@ namespace
 {
 constexpr uint64_t kEmpty = ~uint64_t(0);
 constexpr int64_t kHalf = int64_t(1) << 20;  // 21 bits per axis
+constexpr uint64_t kAxis = (uint64_t(1) << 21) - 1;
+constexpr size_t kFirstSlots = 1 << 12;
 
 inline uint64_t mix(uint64_t x)
 {
@@ -54,48 +57,120 @@ inline bool voxelKey(const Eigen::Vector3f& xyz, double inv, uint64_t& key)
 	key = (uint64_t(i) << 42) | (uint64_t(j) << 21) | uint64_t(k);
 	return true;
 }
+
+/** Floor division (voxel indices are negative west/south of the origin). */
+inline int64_t floorDiv(int64_t a, int64_t b)
+{
+	return a / b - ((a % b != 0) && ((a < 0) != (b < 0)));
+}
 }  // namespace
 
-DenseMap::DenseMap(double voxel_m)
-    : voxel_m_(voxel_m), inv_voxel_(1.0 / voxel_m)
+DenseMap::DenseMap(double voxel_m, double tile_m)
+    : voxel_m_(voxel_m), inv_voxel_(1.0 / voxel_m), tile_vox_(0)
 {
 	if (!(voxel_m > 0))
 		throw std::invalid_argument("DenseMap: voxel size must be > 0");
-	keys_.assign(1 << 12, kEmpty);
-	index_.assign(keys_.size(), 0);
-	mask_ = keys_.size() - 1;
+	// Tiles are whole voxels wide, so a voxel never straddles two tiles.
+	if (tile_m > 0)
+		tile_vox_ = std::max<int64_t>(1, std::llround(tile_m / voxel_m));
+}
+
+uint64_t DenseMap::tileKeyOf(uint64_t key) const
+{
+	if (tile_vox_ == 0) return 0;
+	const int64_t i = int64_t((key >> 42) & kAxis) - kHalf;
+	const int64_t j = int64_t((key >> 21) & kAxis) - kHalf;
+	const int64_t ti = floorDiv(i, tile_vox_), tj = floorDiv(j, tile_vox_);
+	return (uint64_t(uint32_t(int32_t(ti))) << 32) | uint32_t(int32_t(tj));
+}
+
+DenseMap::Tile* DenseMap::findTile(uint64_t key) const
+{
+	const uint64_t tk = tileKeyOf(key);
+	if (have_last_ && tk == last_key_) return tiles_[last_tile_].get();
+	const auto it = by_key_.find(tk);
+	if (it == by_key_.end()) return nullptr;
+	have_last_ = true;
+	last_key_ = tk;
+	last_tile_ = it->second;
+	return tiles_[it->second].get();
+}
+
+DenseMap::Tile& DenseMap::tileFor(uint64_t key)
+{
+	if (Tile* t = findTile(key)) return *t;
+	const uint64_t tk = tileKeyOf(key);
+	auto t = std::make_unique<Tile>();
+	t->tx = int32_t(uint32_t(tk >> 32));
+	t->ty = int32_t(uint32_t(tk));
+	t->keys.assign(kFirstSlots, kEmpty);
+	t->index.assign(kFirstSlots, 0);
+	t->mask = kFirstSlots - 1;
+	by_key_.emplace(tk, static_cast<uint32_t>(tiles_.size()));
+	tiles_.push_back(std::move(t));
+	have_last_ = true;
+	last_key_ = tk;
+	last_tile_ = static_cast<uint32_t>(tiles_.size() - 1);
+	return *tiles_.back();
 }
 
 size_t DenseMap::memoryBytes() const
 {
-	return points_.capacity() * sizeof(DensePoint) +
-	       keys_.capacity() * sizeof(uint64_t) +
-	       index_.capacity() * sizeof(uint32_t);
+	size_t n = core::hashMapBytes(by_key_) + core::vectorBytes(tiles_);
+	for (const auto& t : tiles_)
+		n += sizeof(Tile) + core::vectorBytes(t->points) +
+		     core::vectorBytes(t->keys) + core::vectorBytes(t->index);
+	return n;
+}
+
+size_t DenseMap::spilledBytes() const
+{
+	size_t n = 0;
+	for (const auto& t : tiles_)
+		if (t->spilled) n += t->spill_count * sizeof(DensePoint);
+	return n;
+}
+
+size_t DenseMap::tilesSpilled() const
+{
+	size_t n = 0;
+	for (const auto& t : tiles_) n += t->spilled ? 1 : 0;
+	return n;
 }
 
 DensePoint* DenseMap::claim(const Eigen::Vector3f& xyz)
 {
 	uint64_t key;
 	if (!xyz.allFinite() || !voxelKey(xyz, inv_voxel_, key)) return nullptr;
-	if (2 * (points_.size() + 1) > keys_.size()) grow();
-	size_t slot = slotOf(key, mask_);
-	while (keys_[slot] != kEmpty)
+	Tile& t = tileFor(key);
+	if (t.spilled) reload(t);
+	return claimIn(t, key, xyz);
+}
+
+DensePoint* DenseMap::claimIn(Tile& t, uint64_t key, const Eigen::Vector3f& xyz)
+{
+	if (2 * (t.points.size() + 1) > t.keys.size()) grow(t);
+	size_t slot = slotOf(key, t.mask);
+	while (t.keys[slot] != kEmpty)
 	{
-		if (keys_[slot] == key) return nullptr;
-		slot = (slot + 1) & mask_;
+		if (t.keys[slot] == key) return nullptr;
+		slot = (slot + 1) & t.mask;
 	}
-	keys_[slot] = key;
-	index_[slot] = static_cast<uint32_t>(points_.size());
-	points_.emplace_back();
-	points_.back().xyz = xyz;
-	return &points_.back();
+	t.keys[slot] = key;
+	t.index[slot] = static_cast<uint32_t>(t.points.size());
+	t.points.emplace_back();
+	t.points.back().xyz = xyz;
+	t.changed = true;
+	size_++;
+	return &t.points.back();
 }
 
 void DenseMap::prefetch(const Eigen::Vector3f& xyz) const
 {
 	uint64_t key;
 	if (!xyz.allFinite() || !voxelKey(xyz, inv_voxel_, key)) return;
-	__builtin_prefetch(&keys_[slotOf(key, mask_)]);
+	const Tile* t = findTile(key);
+	if (t && !t->spilled) __builtin_prefetch(&t->keys[slotOf(key, t->mask)]);
 }
 
 bool DenseMap::add(const DensePoint& p)
@@ -105,22 +180,89 @@ bool DenseMap::add(const DensePoint& p)
 	return q != nullptr;
 }
 
-void DenseMap::grow()
+std::vector<DensePoint> DenseMap::points() const
 {
-	std::vector<uint64_t> old_keys(keys_.size() * 2, kEmpty);
+	std::vector<DensePoint> all;
+	all.reserve(size_);
+	forEachTile([&](const std::vector<DensePoint>& pts)
+	            { all.insert(all.end(), pts.begin(), pts.end()); });
+	return all;
+}
+
+void DenseMap::grow(Tile& t)
+{
+	std::vector<uint64_t> old_keys(t.keys.size() * 2, kEmpty);
 	std::vector<uint32_t> old_index(old_keys.size(), 0);
-	old_keys.swap(keys_);
-	old_index.swap(index_);
-	adviseHugePages(keys_);
-	mask_ = keys_.size() - 1;
+	old_keys.swap(t.keys);
+	old_index.swap(t.index);
+	adviseHugePages(t.keys);
+	t.mask = t.keys.size() - 1;
 	for (size_t s = 0; s < old_keys.size(); s++)
 	{
 		if (old_keys[s] == kEmpty) continue;
-		size_t slot = slotOf(old_keys[s], mask_);
-		while (keys_[slot] != kEmpty) slot = (slot + 1) & mask_;
-		keys_[slot] = old_keys[s];
-		index_[slot] = old_index[s];
+		size_t slot = slotOf(old_keys[s], t.mask);
+		while (t.keys[slot] != kEmpty) slot = (slot + 1) & t.mask;
+		t.keys[slot] = old_keys[s];
+		t.index[slot] = old_index[s];
 	}
+}
+
+size_t DenseMap::spillFar(const Eigen::Vector2d& centre, double radius_m,
+                          const std::shared_ptr<core::SpillFile>& spill)
+{
+	if (tile_vox_ == 0 || !spill) return 0;
+	if (spill_ && spill_ != spill)
+		throw std::logic_error("DenseMap::spillFar: another spill file");
+	spill_ = spill;
+	const double edge = tile_vox_ * voxel_m_;
+	size_t moved = 0;
+	for (auto& tp : tiles_)
+	{
+		Tile& t = *tp;
+		if (t.spilled || t.points.empty()) continue;
+		const double x0 = t.tx * edge, y0 = t.ty * edge;
+		const double dx =
+		    std::max({x0 - centre.x(), 0.0, centre.x() - (x0 + edge)});
+		const double dy =
+		    std::max({y0 - centre.y(), 0.0, centre.y() - (y0 + edge)});
+		if (dx * dx + dy * dy <= radius_m * radius_m) continue;
+		// A tile read back and not changed since is already on disk.
+		if (t.changed)
+		{
+			t.spill_offset = spill_->appendVector(t.points);
+			t.spill_count = t.points.size();
+		}
+		std::vector<DensePoint>().swap(t.points);
+		std::vector<uint64_t>().swap(t.keys);
+		std::vector<uint32_t>().swap(t.index);
+		t.mask = 0;
+		t.spilled = true;
+		t.changed = false;
+		moved++;
+	}
+	return moved;
+}
+
+void DenseMap::reload(Tile& t)
+{
+	spill_->readVector(t.spill_offset, t.spill_count, t.points);
+	size_t slots = kFirstSlots;
+	while (slots < 2 * (t.points.size() + 1)) slots *= 2;
+	t.keys.assign(slots, kEmpty);
+	t.index.assign(slots, 0);
+	t.mask = slots - 1;
+	adviseHugePages(t.keys);
+	for (size_t i = 0; i < t.points.size(); i++)
+	{
+		uint64_t key = 0;
+		voxelKey(t.points[i].xyz, inv_voxel_, key);
+		size_t slot = slotOf(key, t.mask);
+		while (t.keys[slot] != kEmpty) slot = (slot + 1) & t.mask;
+		t.keys[slot] = key;
+		t.index[slot] = static_cast<uint32_t>(i);
+	}
+	t.spilled = false;
+	t.changed = false;
 }
 
 }  // namespace forest_slam::outputs

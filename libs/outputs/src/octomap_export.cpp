@@ -65,15 +65,28 @@ OctomapSummary writeOctomap(const Keyframes& keyframes, double resolution_m,
                             double max_range_m, const std::string& bt_path,
                             const std::string& ot_path)
 {
+	return writeOctomap(
+	    keyframes, [&](size_t i) { return keyframes[i].points; }, resolution_m,
+	    max_range_m, bt_path, ot_path);
+}
+
+OctomapSummary writeOctomap(const Keyframes& keyframes,
+                            const KeyframeCloudLoader& cloud_of,
+                            double resolution_m, double max_range_m,
+                            const std::string& bt_path,
+                            const std::string& ot_path)
+{
 	const auto t0 = std::chrono::steady_clock::now();
 	OctomapSummary s;
 	octomap::OcTree tree(resolution_m);
-	for (const auto& kf : keyframes)
+	for (size_t i = 0; i < keyframes.size(); i++)
 	{
+		const auto& kf = keyframes[i];
+		const std::vector<Eigen::Vector3f> pts = cloud_of(i);
 		octomap::Pointcloud cloud;
-		cloud.reserve(kf.points.size());
+		cloud.reserve(pts.size());
 		const Eigen::Isometry3f T = kf.sensor_pose.cast<float>();
-		for (const auto& p : kf.points)
+		for (const auto& p : pts)
 		{
 			const Eigen::Vector3f q = T * p;
 			cloud.push_back(q.x(), q.y(), q.z());
@@ -85,7 +98,7 @@ OctomapSummary writeOctomap(const Keyframes& keyframes, double resolution_m,
 		tree.insertPointCloud(cloud, octomap::point3d(o.x(), o.y(), o.z()),
 		                      max_range_m, true, true);
 		s.keyframes++;
-		s.rays += kf.points.size();
+		s.rays += pts.size();
 	}
 	tree.updateInnerOccupancy();
 	for (auto it = tree.begin_leafs(), end = tree.end_leafs(); it != end; ++it)

@@ -11,14 +11,18 @@ namespace forest_slam::outputs
 	X(keyframes_simplemap)                                                     \
 	X(forest_map)                                                              \
 	X(las)                                                                     \
-	X(ply) X(pcd) X(octomap_bt) X(octomap_ot) X(trees_csv) X(trees_geojson)    \
-	    X(dtm_asc) X(report_html) X(keyframe_every_scans) X(keyframe_every_m)  \
+	X(ply)                                                                     \
+	X(pcd)                                                                     \
+	X(octomap_bt) X(octomap_ot) X(trees_csv) X(trees_geojson) X(dtm_asc)       \
+	    X(report_html) X(keyframe_every_scans) X(keyframe_every_m)             \
 	        X(keyframe_voxel_m) X(keyframe_max_range_m) X(dense_voxel_m)       \
 	            X(dense_max_range_m) X(octomap_resolution_m)                   \
 	                X(octomap_max_range_m) X(dtm_cell_m) X(ground_threshold_m) \
 	                    X(low_vegetation_max_m) X(medium_vegetation_max_m)     \
 	                        X(stem_class) X(stem_margin_m)                     \
-	                            X(stem_max_height_m) X(detect_trees_if_empty)
+	                            X(stem_max_height_m) X(detect_trees_if_empty)  \
+	                                X(spill_to_disk) X(dense_tile_m)           \
+	                                    X(spill_dir)
 
 void OutputOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
                                        const std::string& s)
@@ -36,6 +40,7 @@ void OutputOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 	if (!(keyframe_max_range_m > 0)) bad("keyframe_max_range_m must be > 0");
 	if (!(dense_voxel_m >= 0.005)) bad("dense_voxel_m must be >= 0.005 (5 mm)");
 	if (!(dense_max_range_m > 0)) bad("dense_max_range_m must be > 0");
+	if (!(dense_tile_m >= 1)) bad("dense_tile_m must be >= 1");
 	if (!(octomap_resolution_m >= 0.01))
 		bad("octomap_resolution_m must be >= 0.01");
 	if (!(octomap_max_range_m > 0)) bad("octomap_max_range_m must be > 0");

@@ -1,3 +1,4 @@
+#include <forest_slam/core/memory.h>
 #include <forest_slam/outputs/run_collector.h>
 
 #include <mrpt/obs/CObservationGPS.h>
@@ -27,8 +28,30 @@ RunCollector::RunCollector(const OutputOptions& o, double min_range_m,
     : o_(o),
       min_range_m_(static_cast<float>(min_range_m)),
       max_range_m_(static_cast<float>(max_range_m)),
-      dense_(o.dense_voxel_m)
+      dense_(o.dense_voxel_m, o.spill_to_disk ? o.dense_tile_m : 0)
 {
+	// At once, so a bad spill_dir stops the run before it starts.
+	if (o.spill_to_disk) spill();
+}
+
+core::SpillFile& RunCollector::spill()
+{
+	if (!spill_) spill_ = std::make_shared<core::SpillFile>(o_.spill_dir);
+	return *spill_;
+}
+
+std::vector<Eigen::Vector3f> RunCollector::keyframeCloud(size_t i) const
+{
+	const auto& kf = keyframes_.at(i);
+	if (!kf.spilled) return kf.points;
+	std::vector<Eigen::Vector3f> pts;
+	spill_->readVector(kf.spill_offset, kf.spill_count, pts);
+	return pts;
+}
+
+size_t RunCollector::spilledBytes() const
+{
+	return spill_ ? spill_->size() : 0;
 }
 
 void RunCollector::addScan(const core::ScanPoints& scan,
@@ -40,13 +63,14 @@ void RunCollector::addScan(const core::ScanPoints& scan,
 	{
 		const core::StampedPose a = pending_->pose;
 		const std::function<bool(double, Eigen::Isometry3d&)> between =
-		    [&](double t, Eigen::Isometry3d& T) {
-			    if (!(pose.t_s > a.t_s)) return false;
-			    T = core::interpolateIsometry(
-			        a.pose, pose.pose,
-			        std::clamp((t - a.t_s) / (pose.t_s - a.t_s), 0.0, 1.0));
-			    return true;
-		    };
+		    [&](double t, Eigen::Isometry3d& T)
+		{
+			if (!(pose.t_s > a.t_s)) return false;
+			T = core::interpolateIsometry(
+			    a.pose, pose.pose,
+			    std::clamp((t - a.t_s) / (pose.t_s - a.t_s), 0.0, 1.0));
+			return true;
+		};
 		collect(pending_->scan, a, &between);
 	}
 	pending_ = Pending{scan, pose};
@@ -151,15 +175,37 @@ void RunCollector::collect(
 		kf.sensor_pose = pose.pose;
 		kf.points.reserve(kf_grid->size());
 		for (const auto& k : kf_grid->points()) kf.points.push_back(k.xyz);
+		if (o_.spill_to_disk)  // needed again only at the end of the run
+		{
+			kf.spill_offset = spill().appendVector(kf.points);
+			kf.spill_count = kf.points.size();
+			kf.spilled = true;
+			std::vector<Eigen::Vector3f>().swap(kf.points);
+		}
 		keyframes_.push_back(std::move(kf));
 		scans_since_keyframe_ = 0;
 	}
 	else
 		scans_since_keyframe_++;
+	// Tiles no return of this sensor position can reach go to disk (the
+	// margin keeps a tile at the edge from going back and forth).
+	if (o_.spill_to_disk)
+	{
+		spill();
+		dense_.spillFar(pose.pose.translation().head<2>(),
+		                o_.dense_max_range_m + o_.dense_tile_m, spill_);
+	}
 	prev_ = pose;
 	have_prev_ = true;
 	scans_++;
 	collect_s_ += threadCpuSeconds() - cpu0;
+}
+
+size_t RunCollector::keyframeBytes() const
+{
+	size_t n = core::vectorBytes(keyframes_);
+	for (const auto& k : keyframes_) n += core::vectorBytes(k.points);
+	return n;
 }
 
 void RunCollector::addGnss(const mrpt::obs::CObservation& obs)

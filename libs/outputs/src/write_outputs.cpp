@@ -1,5 +1,6 @@
 #include <forest_slam/core/atomic_file.h>
 #include <forest_slam/core/log.h>
+#include <forest_slam/core/memory.h>
 #include <forest_slam/io/las.h>
 #include <forest_slam/io/tum.h>
 #include <forest_slam/outputs/classification.h>
@@ -14,11 +15,11 @@
 #include <mrpt/io/CFileGZOutputStream.h>
 #include <mrpt/serialization/CArchive.h>
 
-#include <sys/resource.h>
-
 #include <chrono>
 #include <cstdio>
+#include <limits>
 #include <map>
+#include <memory>
 
 namespace forest_slam::outputs
 {
@@ -31,55 +32,41 @@ double secondsSince(std::chrono::steady_clock::time_point t0)
 }
 
 /** map.ply: binary little endian, double x y z in the output frame. */
-void writePly(const std::string& path, const io::PointCloudFile& c)
+void writePlyHeader(std::ostream& os, size_t n)
 {
-	core::writeFileAtomically(
-	    path,
-	    [&](std::ostream& os)
-	    {
-		    os << "ply\nformat binary_little_endian 1.0\ncomment forest-slam "
-		          "dense map\nelement vertex "
-		       << c.size()
-		       << "\nproperty double x\nproperty double y\nproperty double z\n"
-		          "property ushort intensity\nproperty uchar classification\n"
-		          "property double gps_time\nend_header\n";
-		    for (size_t k = 0; k < c.size(); k++)
-		    {
-			    os.write(reinterpret_cast<const char*>(c.xyz[k].data()), 24);
-			    os.write(reinterpret_cast<const char*>(&c.intensity[k]), 2);
-			    os.write(reinterpret_cast<const char*>(&c.classification[k]),
-			             1);
-			    os.write(reinterpret_cast<const char*>(&c.gps_time_s[k]), 8);
-		    }
-	    },
-	    true);
+	os << "ply\nformat binary_little_endian 1.0\ncomment forest-slam "
+	      "dense map\nelement vertex "
+	   << n
+	   << "\nproperty double x\nproperty double y\nproperty double z\n"
+	      "property ushort intensity\nproperty uchar classification\n"
+	      "property double gps_time\nend_header\n";
+}
+void writePlyPoint(std::ostream& os, const Eigen::Vector3d& xyz,
+                   uint16_t intensity, uint8_t cls, double gps_time_s)
+{
+	os.write(reinterpret_cast<const char*>(xyz.data()), 24);
+	os.write(reinterpret_cast<const char*>(&intensity), 2);
+	os.write(reinterpret_cast<const char*>(&cls), 1);
+	os.write(reinterpret_cast<const char*>(&gps_time_s), 8);
 }
 
 /** map.pcd: PCL binary, float x y z (map frame: floats cannot hold UTM
  * coordinates to the millimetre), intensity, label. */
-void writePcd(const std::string& path, const std::vector<DensePoint>& pts,
-              const std::vector<uint8_t>& cls)
+void writePcdHeader(std::ostream& os, size_t n)
 {
-	core::writeFileAtomically(
-	    path,
-	    [&](std::ostream& os)
-	    {
-		    os << "# .PCD v0.7 - forest-slam dense map (map frame)\nVERSION "
-		          "0.7\nFIELDS x y z intensity label\nSIZE 4 4 4 4 4\nTYPE F F "
-		          "F F U\nCOUNT 1 1 1 1 1\nWIDTH "
-		       << pts.size() << "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS "
-		       << pts.size() << "\nDATA binary\n";
-		    for (size_t k = 0; k < pts.size(); k++)
-		    {
-			    const float rec[4] = {pts[k].xyz.x(), pts[k].xyz.y(),
-			                          pts[k].xyz.z(),
-			                          pts[k].intensity / 256.0f};
-			    const uint32_t label = cls[k];
-			    os.write(reinterpret_cast<const char*>(rec), sizeof(rec));
-			    os.write(reinterpret_cast<const char*>(&label), 4);
-		    }
-	    },
-	    true);
+	os << "# .PCD v0.7 - forest-slam dense map (map frame)\nVERSION "
+	      "0.7\nFIELDS x y z intensity label\nSIZE 4 4 4 4 4\nTYPE F F "
+	      "F F U\nCOUNT 1 1 1 1 1\nWIDTH "
+	   << n << "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " << n
+	   << "\nDATA binary\n";
+}
+void writePcdPoint(std::ostream& os, const DensePoint& p, uint8_t cls)
+{
+	const float rec[4] = {p.xyz.x(), p.xyz.y(), p.xyz.z(),
+	                      p.intensity / 256.0f};
+	const uint32_t label = cls;
+	os.write(reinterpret_cast<const char*>(rec), sizeof(rec));
+	os.write(reinterpret_cast<const char*>(&label), 4);
 }
 }  // namespace
 
@@ -122,9 +109,7 @@ void writeForestMap(const std::string& path, const map::CForestMap& m)
 
 double peakMemoryMb()
 {
-	rusage u{};
-	getrusage(RUSAGE_SELF, &u);
-	return u.ru_maxrss / 1024.0;  // Linux: kilobytes
+	return core::peakRssMb();
 }
 
 OutputSummary writeRunOutputs(const OutputInputs& in, const std::string& dir)
@@ -134,8 +119,9 @@ OutputSummary writeRunOutputs(const OutputInputs& in, const std::string& dir)
 	const auto& col = in.collector;
 	const auto geo = Georeference::fromOptions(in.geo);
 	if (col.hasPendingScan())
-		FS_LOG_WARN("outputs: the last scan was not collected (RunCollector::"
-		            "finish() not called)");
+		FS_LOG_WARN(
+		    "outputs: the last scan was not collected (RunCollector::"
+		    "finish() not called)");
 	OutputSummary sum;
 	sum.dense_points = col.dense().size();
 	sum.keyframes = col.keyframes().size();
@@ -147,6 +133,9 @@ OutputSummary writeRunOutputs(const OutputInputs& in, const std::string& dir)
 	};
 	const auto to_output = [&](const Eigen::Vector3d& p)
 	{ return geo ? geo->toProjected(p) : p; };
+
+	const KeyframeCloudLoader cloud_of = [&](size_t i)
+	{ return col.keyframeCloud(i); };
 
 	auto t = std::chrono::steady_clock::now();
 	if (o.trajectory_tum)
@@ -163,17 +152,16 @@ OutputSummary writeRunOutputs(const OutputInputs& in, const std::string& dir)
 	if (o.keyframes_simplemap)
 	{
 		t = std::chrono::steady_clock::now();
-		writeSimpleMap(dir + "/keyframes.simplemap",
-		               toSimpleMap(col.keyframes()));
+		writeSimpleMap(dir + "/keyframes.simplemap", col.keyframes(), cloud_of);
 		add("keyframes.simplemap", t);
 	}
 	if (o.octomap_bt || o.octomap_ot)
 	{
 		t = std::chrono::steady_clock::now();
 		const std::string bt = dir + "/map.bt";
-		const auto s = writeOctomap(col.keyframes(), o.octomap_resolution_m,
-		                            o.octomap_max_range_m, bt,
-		                            o.octomap_ot ? dir + "/map.ot" : "");
+		const auto s = writeOctomap(
+		    col.keyframes(), cloud_of, o.octomap_resolution_m,
+		    o.octomap_max_range_m, bt, o.octomap_ot ? dir + "/map.ot" : "");
 		FS_LOG_INFO("OctoMap: " << s.keyframes << " keyframes, " << s.rays
 		                        << " rays, " << s.occupied_leaves
 		                        << " occupied / " << s.free_leaves
@@ -185,35 +173,39 @@ OutputSummary writeRunOutputs(const OutputInputs& in, const std::string& dir)
 		if (o.octomap_ot) add("map.ot", t);
 	}
 
-	// Terrain, trees and classes of the dense map.
-	const auto& pts = col.dense().points();
+	// Terrain and trees of the dense map. The dense map may be mostly on
+	// disk (spill_to_disk): it is read tile by tile, twice at most (bounds,
+	// then classes and the files), never held whole, except to detect
+	// trees on it (tree layer empty) or for a DTM without ground lattice.
+	const DenseMap& dense = col.dense();
 	std::vector<map::TreeRecord> tree_list = in.map.trees();
 	std::string trees_source = "tree layer of the map";
-	std::vector<uint8_t> classes;
-	ElevationGrid dtm;
-	if (!pts.empty())
+	trees::TerrainModel terrain;
+	if (dense.size() > 0)
 	{
 		t = std::chrono::steady_clock::now();
-		const auto terrain =
-		    terrainForCloud(pts, col.groundLattice(), in.tree_options);
+		terrain = terrainForCloud(dense, col.groundLattice(), in.tree_options);
 		if (tree_list.empty() && o.detect_trees_if_empty &&
 		    (o.trees_csv || o.trees_geojson || o.report_html || o.forest_map ||
 		     o.las))
 		{
-			std::vector<Eigen::Vector3d> xyz(pts.size());
-			for (size_t k = 0; k < pts.size(); k++)
-				xyz[k] = pts[k].xyz.cast<double>();
+			std::vector<Eigen::Vector3d> xyz;
+			xyz.reserve(dense.size());
+			dense.forEachTile(
+			    [&](const std::vector<DensePoint>& pts)
+			    {
+				    for (const auto& p : pts)
+					    xyz.push_back(p.xyz.cast<double>());
+			    });
 			tree_list = trees::toRecords(
 			    trees::detectTrees(xyz, terrain, in.tree_options));
 			trees_source = "detected on the dense map at the end of the run";
 			sum.trees_detected_here = true;
 			FS_LOG_INFO("trees: tree layer empty, "
 			            << tree_list.size() << " stems detected on the "
-			            << pts.size() << "-point dense map in "
+			            << dense.size() << "-point dense map in "
 			            << secondsSince(t) << " s");
 		}
-		classes = classifyPoints(pts, terrain, tree_list, o);
-		dtm = groundGrid(pts, classes, o.dtm_cell_m, to_output);
 	}
 	sum.trees = tree_list.size();
 
@@ -231,43 +223,82 @@ OutputSummary writeRunOutputs(const OutputInputs& in, const std::string& dir)
 			writeForestMap(path, in.map);
 		add("forest.map", t);
 	}
-	if (!pts.empty() && (o.las || o.ply))
+
+	// One pass over the tiles: class of every point, DTM cells, and the
+	// dense-map files point by point.
+	GroundGridBuilder dtm_cells(o.dtm_cell_m);
+	if (dense.size() > 0)
 	{
 		t = std::chrono::steady_clock::now();
-		io::PointCloudFile c;
-		c.xyz.resize(pts.size());
-		c.intensity.resize(pts.size());
-		c.gps_time_s.resize(pts.size());
-		c.scan_angle_deg.resize(pts.size());
-		c.classification = classes;
-		const double t0 = col.dense().timeOrigin();
-		for (size_t k = 0; k < pts.size(); k++)
-		{
-			c.xyz[k] = to_output(pts[k].xyz.cast<double>());
-			c.intensity[k] = pts[k].intensity;
-			c.gps_time_s[k] = io::unixToAdjustedGpsTime(t0 + pts[k].t_s);
-			c.scan_angle_deg[k] = pts[k].scan_angle * 0.006f;
-		}
+		std::unique_ptr<io::LasStreamWriter> las;
+		std::unique_ptr<core::AtomicFileWriter> ply, pcd;
 		if (o.las)
 		{
-			io::LasWriteOptions lo;
-			if (geo) lo.wkt = geo->wkt();
-			io::writeLas(dir + "/map.las", c, lo);
-			add("map.las", t);
+			// The LAS offset is the minimum of the output coordinates.
+			Eigen::Vector3d lo =
+			    Eigen::Vector3d::Constant(std::numeric_limits<double>::max());
+			dense.forEachTile(
+			    [&](const std::vector<DensePoint>& pts)
+			    {
+				    for (const auto& p : pts)
+					    lo = lo.cwiseMin(to_output(p.xyz.cast<double>()));
+			    });
+			io::LasWriteOptions lo_opts;
+			if (geo) lo_opts.wkt = geo->wkt();
+			las = std::make_unique<io::LasStreamWriter>(
+			    dir + "/map.las", dense.size(),
+			    io::LasStreamWriter::offsetFor(lo), lo_opts);
 		}
 		if (o.ply)
 		{
-			t = std::chrono::steady_clock::now();
-			writePly(dir + "/map.ply", c);
+			ply = std::make_unique<core::AtomicFileWriter>(dir + "/map.ply",
+			                                               true);
+			writePlyHeader(ply->stream(), dense.size());
+		}
+		if (o.pcd)
+		{
+			pcd = std::make_unique<core::AtomicFileWriter>(dir + "/map.pcd",
+			                                               true);
+			writePcdHeader(pcd->stream(), dense.size());
+		}
+		const PointClassifier classifier(terrain, tree_list, o);
+		const double t0 = dense.timeOrigin();
+		dense.forEachTile(
+		    [&](const std::vector<DensePoint>& pts)
+		    {
+			    for (const auto& p : pts)
+			    {
+				    const Eigen::Vector3d m = p.xyz.cast<double>();
+				    const uint8_t c = classifier.classify(m);
+				    if (!las && !ply && !pcd && c != kGround) continue;
+				    const Eigen::Vector3d out = to_output(m);
+				    if (c == kGround) dtm_cells.add(out);
+				    const double gps = io::unixToAdjustedGpsTime(t0 + p.t_s);
+				    if (las)
+					    las->add(out, p.intensity, c, p.scan_angle * 0.006f,
+					             gps);
+				    if (ply)
+					    writePlyPoint(ply->stream(), out, p.intensity, c, gps);
+				    if (pcd) writePcdPoint(pcd->stream(), p, c);
+			    }
+		    });
+		if (las)
+		{
+			las->commit();
+			add("map.las", t);
+		}
+		if (ply)
+		{
+			ply->commit();
 			add("map.ply", t);
 		}
+		if (pcd)
+		{
+			pcd->commit();
+			add("map.pcd", t);
+		}
 	}
-	if (!pts.empty() && o.pcd)
-	{
-		t = std::chrono::steady_clock::now();
-		writePcd(dir + "/map.pcd", pts, classes);
-		add("map.pcd", t);
-	}
+	const ElevationGrid dtm = dtm_cells.grid();
 	if (o.trees_csv)
 	{
 		t = std::chrono::steady_clock::now();

@@ -24,7 +24,9 @@ namespace
 std::atomic<int> g_stop_signal{0};
 std::atomic<int> g_stop_signals{0};	 // how many arrived
 int g_signal_scopes = 0;  // nesting depth of StopSignalScope
-struct sigaction g_old_int{}, g_old_term{};
+struct sigaction g_old_int
+{
+}, g_old_term{};
 extern "C" void onStopSignal(int sig)
 {
 	g_stop_signal = sig;
@@ -37,7 +39,9 @@ StopSignalScope::StopSignalScope()
 	if (g_signal_scopes++ > 0) return;
 	g_stop_signal = 0;
 	g_stop_signals = 0;
-	struct sigaction sa{};
+	struct sigaction sa
+	{
+	};
 	sa.sa_handler = onStopSignal;
 	sigemptyset(&sa.sa_mask);
 	sigaction(SIGINT, &sa, &g_old_int);
@@ -51,8 +55,14 @@ StopSignalScope::~StopSignalScope()
 	sigaction(SIGTERM, &g_old_term, nullptr);
 }
 
-int stopSignal() { return g_stop_signal.load(); }
-int stopSignalCount() { return g_stop_signals.load(); }
+int stopSignal()
+{
+	return g_stop_signal.load();
+}
+int stopSignalCount()
+{
+	return g_stop_signals.load();
+}
 
 namespace
 {
@@ -77,8 +87,11 @@ std::string jsonEscape(const std::string& s)
 std::string distributionJson(std::vector<double>& v)
 {
 	std::sort(v.begin(), v.end());
-	const auto at = [&](double q) {
-		return v.empty() ? 0.0 : v[std::min(v.size() - 1, static_cast<size_t>(q * v.size()))];
+	const auto at = [&](double q)
+	{
+		return v.empty() ? 0.0
+		                 : v[std::min(v.size() - 1,
+		                              static_cast<size_t>(q * v.size()))];
 	};
 	std::ostringstream os;
 	os << "{\"median\": " << at(0.5) << ", \"p95\": " << at(0.95)
@@ -103,7 +116,8 @@ std::string stageTimesJson(const std::vector<odometry::ScanTiming>& t,
 	{
 		std::vector<double> v;
 		for (const auto& x : t) v.push_back(x.*field);
-		os << (first ? "" : ", ") << "\"" << name << "\": " << distributionJson(v);
+		os << (first ? "" : ", ") << "\"" << name
+		   << "\": " << distributionJson(v);
 		first = false;
 	}
 	os << ", \"trees\": " << distributionJson(tree_ms) << "}";
@@ -137,7 +151,10 @@ std::string loopJson(const loop::BackEnd* b)
 void writeLoopClosures(const loop::BackEnd& b, const std::string& path)
 {
 	const auto t = b.keyframeStamps();
-	core::writeFileAtomically(path, [&](std::ostream& os) {
+	core::writeFileAtomically(
+	    path,
+	    [&](std::ostream& os)
+	    {
 		os << "from_t_s,to_t_s,accepted,reason,overlap,rmse_m,chi2,"
 		      "travelled_m,x,y,z,qx,qy,qz,qw\n";
 		os << std::fixed;
@@ -146,11 +163,12 @@ void writeLoopClosures(const loop::BackEnd& b, const std::string& path)
 		{
 			const Eigen::Quaterniond q(c.T.linear());
 			os << t.at(c.from) << ',' << t.at(c.to) << ','
-			   << (c.accepted ? 1 : 0) << ',' << c.reason << ',' << c.overlap
-			   << ',' << c.rmse_m << ',' << c.chi2 << ',' << c.travelled_m
-			   << ',' << c.T.translation().x() << ',' << c.T.translation().y()
-			   << ',' << c.T.translation().z() << ',' << q.x() << ',' << q.y()
-			   << ',' << q.z() << ',' << q.w() << '\n';
+			       << (c.accepted ? 1 : 0) << ',' << c.reason << ','
+			       << c.overlap << ',' << c.rmse_m << ',' << c.chi2 << ','
+			       << c.travelled_m << ',' << c.T.translation().x() << ','
+			       << c.T.translation().y() << ',' << c.T.translation().z()
+			       << ',' << q.x() << ',' << q.y() << ',' << q.z() << ','
+			       << q.w() << '\n';
 		}
 	});
 }
@@ -167,7 +185,8 @@ class RawlogSource : public ObservationSource
 	{
 	}
 	mrpt::obs::CObservation::Ptr next() override { return reader_.next(); }
-	void processed(const mrpt::obs::CObservation&, const MappingPipeline& p) override
+	void processed(const mrpt::obs::CObservation&,
+	               const MappingPipeline& p) override
 	{
 		if (p.stats().scans_in == scans_seen_) return;
 		scans_seen_ = p.stats().scans_in;
@@ -193,7 +212,8 @@ class FollowedRawlogSource : public ObservationSource
 {
    public:
 	explicit FollowedRawlogSource(const MappingJob& job)
-		: follower_(job.rawlog_path, followOptions(job)), progress_(job.progress_tty)
+	    : follower_(job.rawlog_path, followOptions(job)),
+	      progress_(job.progress_tty)
 	{
 		if (follower_.gzip())
 			FS_LOG_WARN(job.rawlog_path
@@ -202,7 +222,8 @@ class FollowedRawlogSource : public ObservationSource
 						   "by record)");
 	}
 	mrpt::obs::CObservation::Ptr next() override { return follower_.next(); }
-	void processed(const mrpt::obs::CObservation&, const MappingPipeline& p) override
+	void processed(const mrpt::obs::CObservation&,
+	               const MappingPipeline& p) override
 	{
 		if (p.stats().scans_in == scans_seen_) return;
 		scans_seen_ = p.stats().scans_in;
@@ -267,6 +288,8 @@ MappingResult runMapping(const MappingJob& job, const MappingConfig& cfg,
 	MappingResult result;
 	StopSignalScope signals;
 	const auto t0 = std::chrono::steady_clock::now();
+	const double mem_period_s = cfg.pipeline.memory_report_period_s;
+	double next_mem_s = mem_period_s;
 	FS_LOG_INFO("mapping " << source.describe() << " with " << job.config_path
 						   << " -> " << job.out_dir);
 	while (!pipeline.reachedScanLimit())
@@ -274,7 +297,8 @@ MappingResult runMapping(const MappingJob& job, const MappingConfig& cfg,
 		if (g_stop_signal && !result.interrupted)
 		{
 			result.interrupted = true;
-			FS_LOG_WARN("signal " << g_stop_signal.load()
+			FS_LOG_WARN("signal "
+			            << g_stop_signal.load()
 								  << (source.drainOnStop()
 										  ? " received: stopping, draining the "
 											"queue, writing outputs"
@@ -299,6 +323,14 @@ MappingResult runMapping(const MappingJob& job, const MappingConfig& cfg,
 		source.willProcess(*obs, pipeline);
 		pipeline.process(obs);
 		source.processed(*obs, pipeline);
+		if (mem_period_s > 0 && pipeline.stats().dataSeconds() >= next_mem_s)
+		{
+			result.memory_curve.push_back(sampleMemory(pipeline));
+			FS_LOG_INFO("memory at "
+			            << next_mem_s << " s of data: "
+			            << describeMemory(result.memory_curve.back()));
+			next_mem_s += mem_period_s;
+		}
 	}
 	if (g_stop_signal && !result.interrupted)  // arrived while next() waited
 	{
@@ -309,18 +341,22 @@ MappingResult runMapping(const MappingJob& job, const MappingConfig& cfg,
 	pipeline.finish();
 	source.finish(pipeline);
 	result.stats = pipeline.stats();
-	result.wall_seconds = std::chrono::duration<double>(
-							  std::chrono::steady_clock::now() - t0)
+	result.wall_seconds =
+	    std::chrono::duration<double>(std::chrono::steady_clock::now() - t0)
 							  .count();
 	pipeline.finishOutputs();
+	result.memory_end = sampleMemory(pipeline);
+	FS_LOG_INFO(
+	    "memory at the end of mapping: " << describeMemory(result.memory_end));
 	result.outputs = writeOutputs(pipeline, result, job.out_dir);
 	for (const auto& f : source.writeOutputs(job.out_dir))
 		result.outputs.push_back(f);
 	return result;
 }
 
-std::vector<std::string> writeOutputs(
-	const MappingPipeline& p, const MappingResult& r, const std::string& dir)
+std::vector<std::string> writeOutputs(const MappingPipeline& p,
+                                      const MappingResult& r,
+                                      const std::string& dir)
 {
 	std::vector<std::string> written;
 	const auto& s = r.stats;
@@ -341,15 +377,20 @@ std::vector<std::string> writeOutputs(
 	for (double v : s.tree_ms) tree_total_ms += v;
 	const auto* layer = p.treeLayer();
 	const std::string summary = dir + "/run_summary.json";
-	core::writeFileAtomically(summary, [&](std::ostream& os) {
-		const double rt = r.wall_seconds > 0 ? s.dataSeconds() / r.wall_seconds : 0;
+	core::writeFileAtomically(
+	    summary,
+	    [&](std::ostream& os)
+	    {
+		    const double rt =
+		        r.wall_seconds > 0 ? s.dataSeconds() / r.wall_seconds : 0;
 		os << "{\n"
 		   << "  \"observations\": " << s.observations << ",\n"
 		   << "  \"scans_in\": " << s.scans_in << ",\n"
 		   << "  \"scans_mapped\": " << s.scans_mapped << ",\n"
 		   << "  \"scans_empty\": " << s.scans_empty << ",\n"
 		   << "  \"scans_out_of_order\": " << s.scans_out_of_order << ",\n"
-		   << "  \"scans_outside_poses\": " << s.scans_outside_poses << ",\n"
+		       << "  \"scans_outside_poses\": " << s.scans_outside_poses
+		       << ",\n"
 		   << "  \"scans_unreadable\": " << s.scans_unreadable << ",\n"
 		   << "  \"scans_degenerate\": " << s.scans_degenerate << ",\n"
 		   << "  \"scans_unregistered\": " << s.scans_unregistered << ",\n"
@@ -375,15 +416,18 @@ std::vector<std::string> writeOutputs(
 		   << ",\n"
 		   << "  \"map_edge_voxels\": " << p.forestMap().edgePointCount()
 		   << ",\n"
-		   << "  \"map_planar_voxels\": " << p.forestMap().planarPointCount()
+		       << "  \"map_planar_voxels\": "
+		       << p.forestMap().planarPointCount() << ",\n"
+		       << "  \"map_submaps\": " << p.forestMap().submaps().size()
 		   << ",\n"
-		   << "  \"map_submaps\": " << p.forestMap().submaps().size() << ",\n"
 		   << "  \"trees\": " << out.trees << ",\n"
 		   << "  \"tree_layer\": {\"total_ms\": " << tree_total_ms
 		   << ", \"share_of_wall\": "
-		   << (r.wall_seconds > 0 ? tree_total_ms / (1000 * r.wall_seconds) : 0)
+		       << (r.wall_seconds > 0 ? tree_total_ms / (1000 * r.wall_seconds)
+		                              : 0)
 		   << ", \"finish_ms\": " << s.tree_finish_ms
-		   << ", \"detections\": " << (layer ? layer->stats().detections : 0)
+		       << ", \"detections\": "
+		       << (layer ? layer->stats().detections : 0)
 		   << ", \"detect_ms\": " << (layer ? layer->stats().detect_ms : 0)
 		   << ", \"stem_voxels\": "
 		   << (layer ? layer->stats().stored_voxels : 0) << "},\n"
@@ -395,8 +439,12 @@ std::vector<std::string> writeOutputs(
 		   << "  \"keyframes\": " << out.keyframes << ",\n"
 		   << "  \"dense_points\": " << out.dense_points << ",\n"
 		   << "  \"peak_memory_mb\": " << outputs::peakMemoryMb() << ",\n"
-		   << "  \"input_damaged\": " << (r.input_damaged ? "true" : "false")
+		       << "  \"memory\": "
+		       << memoryJson(r.memory_end, outputs::peakMemoryMb(),
+		                     r.memory_curve)
 		   << ",\n"
+		       << "  \"input_damaged\": "
+		       << (r.input_damaged ? "true" : "false") << ",\n"
 		   << "  \"damage\": \"" << jsonEscape(r.damage_message) << "\",\n"
 		   << "  \"interrupted\": " << (r.interrupted ? "true" : "false")
 		   << "\n"
@@ -426,13 +474,13 @@ std::shared_ptr<map::CForestMap> loadForestMap(const std::string& path)
 	}
 	catch (const std::exception& e)
 	{
-		throw std::runtime_error(
-			"'" + path + "' is not a readable forest map: " + e.what());
+		throw std::runtime_error("'" + path +
+		                         "' is not a readable forest map: " + e.what());
 	}
 	auto m = std::dynamic_pointer_cast<map::CForestMap>(obj);
 	if (!m)
-		throw std::runtime_error(
-			"'" + path + "' holds a " + obj->GetRuntimeClass()->className +
+		throw std::runtime_error("'" + path + "' holds a " +
+		                         obj->GetRuntimeClass()->className +
 			", not a forest_slam::map::CForestMap");
 	return m;
 }

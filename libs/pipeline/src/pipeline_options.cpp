@@ -3,8 +3,8 @@
 
 namespace forest_slam::pipeline
 {
-void PipelineOptions::loadFromConfigFile(
-	const mrpt::config::CConfigFileBase& c, const std::string& s)
+void PipelineOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
+                                         const std::string& s)
 {
 	FS_LOAD(c, s, lidar_label);
 	FS_LOAD(c, s, imu_label);
@@ -16,26 +16,29 @@ void PipelineOptions::loadFromConfigFile(
 	FS_LOAD(c, s, deskew);
 	FS_LOAD(c, s, gnss_max_speed_mps);
 	FS_LOAD(c, s, gnss_jump_tolerance_m);
+	FS_LOAD(c, s, memory_report_period_s);
 	const std::string where = core::configOrigin(c) + ": [" + s + "] ";
 	if (pose_source != "static" && pose_source != "trajectory" &&
 		pose_source != "odometry")
-		throw core::ConfigError(
-			where +
-			"pose_source: expected 'odometry', 'static' or 'trajectory', got '" +
-			pose_source + "'");
+		throw core::ConfigError(where +
+		                        "pose_source: expected 'odometry', 'static' or "
+		                        "'trajectory', got '" +
+		                        pose_source + "'");
 	if (lidar_label.empty())
 		throw core::ConfigError(where + "lidar_label must not be empty");
 	if (!(min_range_m >= 0) || !(max_range_m > min_range_m))
-		throw core::ConfigError(
-			where + "need 0 <= min_range_m < max_range_m");
+		throw core::ConfigError(where + "need 0 <= min_range_m < max_range_m");
 	if (!(gnss_max_speed_mps > 0) || !(gnss_jump_tolerance_m > 0))
 		throw core::ConfigError(
 		    where +
 		    "gnss_max_speed_mps and gnss_jump_tolerance_m: expected > 0");
+	if (!(memory_report_period_s >= 0))
+		throw core::ConfigError(
+		    where + "memory_report_period_s: expected >= 0 (0 = off)");
 }
 
-void PipelineOptions::saveToConfigFile(
-	mrpt::config::CConfigFileBase& c, const std::string& s) const
+void PipelineOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
+                                       const std::string& s) const
 {
 	c.write(s, "lidar_label", lidar_label);
 	c.write(s, "imu_label", imu_label);
@@ -47,6 +50,7 @@ void PipelineOptions::saveToConfigFile(
 	c.write(s, "deskew", deskew);
 	c.write(s, "gnss_max_speed_mps", gnss_max_speed_mps);
 	c.write(s, "gnss_jump_tolerance_m", gnss_jump_tolerance_m);
+	c.write(s, "memory_report_period_s", memory_report_period_s);
 }
 
 PoseSource PipelineOptions::poseSource() const

@@ -1,3 +1,4 @@
+#include <forest_slam/core/memory.h>
 #include <forest_slam/trees/stem_detector.h>
 #include <forest_slam/trees/terrain_model.h>
 #include <forest_slam/trees/tree_layer.h>
@@ -84,8 +85,30 @@ void TreeLayer::SortedVoxels::transform(const Eigen::Isometry3f& T)
 	mergeIn(moved);
 }
 
+void TreeLayer::SortedVoxels::spill(core::SpillFile& f)
+{
+	compact();
+	if (changed_)
+	{
+		spill_offset_ = f.appendVector(voxels_);
+		spill_count_ = voxels_.size();
+	}
+	std::vector<Voxel>().swap(voxels_);
+	spilled_ = true;
+	changed_ = false;
+}
+
+void TreeLayer::SortedVoxels::reload(const core::SpillFile& f)
+{
+	if (!spilled_) return;
+	f.readVector(spill_offset_, spill_count_, voxels_);
+	spilled_ = false;
+	changed_ = false;
+}
+
 void TreeLayer::SortedVoxels::mergeIn(std::vector<Voxel>& add)
 {
+	changed_ = true;
 	std::sort(add.begin(), add.end(),
 	          [](const Voxel& a, const Voxel& b) { return a.key < b.key; });
 	std::vector<Voxel> merged;
@@ -115,13 +138,43 @@ void TreeLayer::SortedVoxels::mergeIn(std::vector<Voxel>& add)
 TreeLayer::TreeLayer(const TreeOptions& o, double column_size_m)
     : o_(o), column_m_(column_size_m)
 {
+	if (o.layer_spill_to_disk) spill_ = std::make_unique<core::SpillFile>();
+}
+
+TreeLayer::SortedVoxels& TreeLayer::resident(Column& c)
+{
+	if (c.stem.spilled()) c.stem.reload(*spill_);
+	return c.stem;
+}
+
+void TreeLayer::spillFar(const Eigen::Vector3d& sensor)
+{
+	if (!spill_) return;
+	// Beyond the reach of new points and of the detections of dirty
+	// neighbours (which read a margin of this column) as they fall due.
+	const double far =
+	    std::max(o_.layer_max_range_m, o_.layer_complete_distance_m) +
+	    column_m_;
+	for (auto& [k, c] : cols_)
+		if (!c.dirty && !c.stem.spilled() && c.stem.size() > 0 &&
+		    distanceToSquare(sensor.x(), sensor.y(), k.x * column_m_,
+		                     k.y * column_m_, column_m_) > far)
+			c.stem.spill(*spill_);
+}
+
+size_t TreeLayer::spilledBytes() const
+{
+	size_t n = 0;
+	for (const auto& [k, c] : cols_) n += c.stem.spilledBytes();
+	return n;
 }
 
 std::vector<ColumnKey> TreeLayer::columns() const
 {
 	std::vector<ColumnKey> out;
 	for (const auto& [k, c] : cols_) out.push_back(k);
-	std::sort(out.begin(), out.end(), [](const ColumnKey& a, const ColumnKey& b)
+	std::sort(out.begin(), out.end(),
+	          [](const ColumnKey& a, const ColumnKey& b)
 	          { return a.x != b.x ? a.x < b.x : a.y < b.y; });
 	return out;
 }
@@ -182,8 +235,8 @@ void TreeLayer::addScan(const std::vector<Eigen::Vector3f>& pts,
 		col->dirty = true;
 		const Eigen::Vector3f d = pts[i] - sensor.cast<float>();
 		const float n = d.norm();
-		col->stem.add(pts[i],
-		              n > 0 ? Eigen::Vector3f(d / n) : Eigen::Vector3f::Zero());
+		resident(*col).add(
+		    pts[i], n > 0 ? Eigen::Vector3f(d / n) : Eigen::Vector3f::Zero());
 	}
 	stats_.stored_voxels = 0;
 	for (auto& [k, c] : cols_)
@@ -204,6 +257,7 @@ size_t TreeLayer::update(const Eigen::Vector3d& sensor, map::CForestMap& map)
 			due.push_back(k);
 	for (const auto& k : due) detectColumn(k, map);
 	if (!due.empty()) publish(map);
+	spillFar(sensor);
 	return due.size();
 }
 
@@ -247,8 +301,9 @@ void TreeLayer::detectColumn(const ColumnKey& k, const map::CForestMap& map)
 			for (const auto& [key, p] : it->second.lowest)
 				if (inside(p.x(), p.y(), ground_margin))
 					ground.push_back(p.cast<double>());
-			it->second.stem.compact();
-			it->second.stem.forEach(
+			auto& stem = resident(it->second);
+			stem.compact();
+			stem.forEach(
 			    [&](const Eigen::Vector3f& c, const Eigen::Vector3f& d)
 			    {
 				    if (inside(c.x(), c.y(), margin))
@@ -359,7 +414,7 @@ void TreeLayer::transformColumn(const ColumnKey& k, const Eigen::Isometry3d& T,
 	}
 	c.lowest.swap(lowest);
 	stats_.stored_voxels -= c.stem.size();
-	c.stem.transform(Tf);
+	resident(c).transform(Tf);
 	stats_.stored_voxels += c.stem.size();
 	c.dirty = true;  // detected again when due
 	for (auto& t : c.trees)
@@ -370,12 +425,22 @@ void TreeLayer::transformColumn(const ColumnKey& k, const Eigen::Isometry3d& T,
 	publish(map);
 }
 
+size_t TreeLayer::memoryBytes() const
+{
+	size_t n = core::hashMapBytes(cols_);
+	for (const auto& [k, c] : cols_)
+		n += core::hashMapBytes(c.lowest) + c.stem.memoryBytes() +
+		     core::vectorBytes(c.trees);
+	return n;
+}
+
 std::vector<Eigen::Vector3f> TreeLayer::stemPoints(const ColumnKey& k) const
 {
 	std::vector<Eigen::Vector3f> out;
 	const auto it = cols_.find(k);
 	if (it == cols_.end()) return out;
-	auto& stem = const_cast<SortedVoxels&>(it->second.stem);
+	auto& stem =
+	    const_cast<TreeLayer*>(this)->resident(const_cast<Column&>(it->second));
 	stem.compact();
 	stem.forEach([&](const Eigen::Vector3f& c, const Eigen::Vector3f&)
 	             { out.push_back(c); });

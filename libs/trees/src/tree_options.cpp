@@ -12,7 +12,8 @@ namespace forest_slam::trees
 	X(dtm_window_cells)                                                        \
 	X(dtm_max_step_m)                                                          \
 	X(slice_min_m)                                                             \
-	X(slice_max_m) X(slice_step_m) X(slice_thickness_m) X(kmeans_branching)    \
+	X(slice_max_m)                                                             \
+	X(slice_step_m) X(slice_thickness_m) X(kmeans_branching)                   \
 	    X(kmeans_leaf_points) X(link_distance_m) X(min_slice_points) X(        \
 	        min_dbh_m) X(max_dbh_m) X(section_max_rmse_m) X(section_rmse_rel)  \
 	        X(section_min_arc_deg) X(section_min_inlier_ratio) X(              \
@@ -29,7 +30,8 @@ namespace forest_slam::trees
 	                                    X(layer_complete_distance_m)           \
 	                                        X(layer_margin_m) X(slice_cell_m)  \
 	                                            X(dbh_along_rays)              \
-	                                                X(section_ring_search)
+	                                                X(section_ring_search)     \
+	                                                    X(layer_spill_to_disk)
 
 void TreeOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
                                      const std::string& s)

@@ -20,7 +20,7 @@ struct PointCloudFile
 	std::vector<uint16_t> intensity;
 	std::vector<uint8_t> classification;
 	std::vector<double> gps_time_s;
-	std::vector<float> scan_angle_deg;	///< LAS: scan angle (rank)
+	std::vector<float> scan_angle_deg;  ///< LAS: scan angle (rank)
 	/** Read with `partial`: empty for a whole file, else what was cut off
 	 * (file, byte offset, records read) — the points before it are kept. */
 	std::string damage;
@@ -50,7 +50,7 @@ PointCloudFile parseLas(const std::vector<char>& bytes, const std::string& name,
 
 struct LasWriteOptions
 {
-	double scale_m = 0.001;	 ///< coordinate resolution (all three axes)
+	double scale_m = 0.001;  ///< coordinate resolution (all three axes)
 	/** OGC WKT of the coordinate system; empty: no CRS record. */
 	std::string wkt;
 	/** GPS time field holds adjusted standard GPS time (global encoding bit
@@ -68,7 +68,37 @@ struct LasWriteOptions
  * specification requires for formats >= 6. Throws CloudFileError naming the
  * file if a coordinate does not fit 32 bits at the scale. */
 void writeLas(const std::string& path, const PointCloudFile& cloud,
-			  const LasWriteOptions& o = LasWriteOptions());
+              const LasWriteOptions& o = LasWriteOptions());
+
+/** The same file written point by point, for clouds that are not in memory
+ * as a whole (the dense map of a long run is read back tile by tile): the
+ * point count and the coordinate offset are given up front, the header's
+ * bounds are filled in by commit(). Throws CloudFileError naming the path
+ * (non-finite coordinate, coordinate beyond 32 bits at the scale, a point
+ * count other than promised). */
+class LasStreamWriter
+{
+   public:
+	LasStreamWriter(const std::string& path, uint64_t points,
+	                const Eigen::Vector3d& offset,
+	                const LasWriteOptions& o = LasWriteOptions());
+	~LasStreamWriter();
+	LasStreamWriter(const LasStreamWriter&) = delete;
+	LasStreamWriter& operator=(const LasStreamWriter&) = delete;
+	void add(const Eigen::Vector3d& xyz, uint16_t intensity,
+	         uint8_t classification, float scan_angle_deg, double gps_time_s);
+	/** Writes the bounds, flushes and renames into place. */
+	void commit();
+	/** The offset writeLas uses: the minimum rounded down to a metre. */
+	static Eigen::Vector3d offsetFor(const Eigen::Vector3d& min_xyz)
+	{
+		return min_xyz.array().floor();
+	}
+
+   private:
+	struct Impl;
+	Impl* impl_;
+};
 
 /** UNIX seconds -> adjusted standard GPS time (GPS seconds - 1e9), with the
  * 18 leap seconds valid since 2017. */

@@ -13,6 +13,7 @@
 #include <forest_slam/loop/loop_options.h>
 #include <forest_slam/loop/pose_graph.h>
 
+#include <atomic>
 #include <condition_variable>
 #include <deque>
 #include <map>
@@ -65,6 +66,8 @@ class BackEnd
 	std::vector<Closure> closures() const;
 	BackEndStats stats() const;
 	std::optional<MapToEnu> mapToEnu() const;
+	/** Bytes of the keyframe clouds handed in so far (any thread). */
+	size_t cloudBytes() const { return cloud_bytes_.load(); }
 
    private:
 	struct Item
@@ -87,6 +90,7 @@ class BackEnd
 	long processed_ = -1;  ///< last keyframe processed
 	bool stop_ = false;
 	size_t next_id_ = 0;
+	std::atomic<size_t> cloud_bytes_{0};
 	std::thread worker_;
 	// Worker state (only the worker touches it until finish()).
 	std::vector<Keyframe> kfs_;

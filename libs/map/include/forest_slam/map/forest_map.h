@@ -94,8 +94,8 @@ class CForestMap : public mrpt::maps::CMetricMap
 					 std::vector<Eigen::Vector3f>& edge,
 					 std::vector<Eigen::Vector3f>& planar) const;
 	/** Keys of the submaps intersecting that sphere. */
-	std::vector<SubmapKey> submapsNear(
-		const Eigen::Vector3d& centre, double radius_m) const;
+	std::vector<SubmapKey> submapsNear(const Eigen::Vector3d& centre,
+	                                   double radius_m) const;
 	SubmapKey submapKeyOf(const Eigen::Vector3f& p) const;
 
 	const std::unordered_map<SubmapKey, Submap, VoxelKeyHash>& submaps() const
@@ -104,6 +104,8 @@ class CForestMap : public mrpt::maps::CMetricMap
 	}
 	size_t edgePointCount() const;
 	size_t planarPointCount() const;
+	/** Heap bytes of the submaps (estimate, core/memory.h). */
+	size_t memoryBytes() const;
 
 	/** The tree layer. */
 	const std::vector<TreeRecord>& trees() const { return trees_; }

@@ -41,7 +41,10 @@ inline VoxelKey voxelKeyOf(const Eigen::Vector3f& p, float inv_size)
 class VoxelCloud
 {
    public:
-	explicit VoxelCloud(float voxel_size_m = 0.2f) { setVoxelSize(voxel_size_m); }
+	explicit VoxelCloud(float voxel_size_m = 0.2f)
+	{
+		setVoxelSize(voxel_size_m);
+	}
 	/** Changing the size clears the cloud. */
 	void setVoxelSize(float voxel_size_m);
 	float voxelSize() const { return size_; }
@@ -50,6 +53,8 @@ class VoxelCloud
 	size_t size() const { return voxels_.size(); }
 	bool empty() const { return voxels_.empty(); }
 	void clear() { voxels_.clear(); }
+	/** Heap bytes held (estimate, core/memory.h). */
+	size_t memoryBytes() const;
 
 	/** Centroid of every voxel (unordered). */
 	void appendCentroids(std::vector<Eigen::Vector3f>& out) const;
@@ -63,7 +68,10 @@ class VoxelCloud
 	{
 		Eigen::Vector3f sum = Eigen::Vector3f::Zero();
 		uint32_t count = 0;
-		Eigen::Vector3f centroid() const { return sum / static_cast<float>(count); }
+		Eigen::Vector3f centroid() const
+		{
+			return sum / static_cast<float>(count);
+		}
 	};
 	const std::unordered_map<VoxelKey, Accum, VoxelKeyHash>& voxels() const
 	{

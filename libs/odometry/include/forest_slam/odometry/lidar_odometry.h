@@ -127,6 +127,7 @@ class LidarOdometry
 	void applyCorrection(const Eigen::Isometry3d& C);
 
 	const ground::GroundLattice& groundLattice() const { return lattice_; }
+	const LocalMap& localMap() const { return local_map_; }
 	size_t scansProcessed() const { return scans_; }
 
    private:

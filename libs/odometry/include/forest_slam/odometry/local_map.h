@@ -75,6 +75,9 @@ class LocalMap : public RegistrationTarget
 		return planar_.size() + coarse_.size() + edges_.size();
 	}
 
+	/** Heap bytes (estimate, core/memory.h). */
+	size_t memoryBytes() const;
+
 	bool matchPlane(const Eigen::Vector3f& x, double gate,
 	                const RegistrationOptions& o, PlaneRow& out) const override;
 	bool matchLine(const Eigen::Vector3f& x, double gate,

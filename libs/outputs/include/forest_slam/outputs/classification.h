@@ -9,6 +9,7 @@
 #include <Eigen/Core>
 #include <functional>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 namespace forest_slam::ground
@@ -35,6 +36,29 @@ enum LasClass : uint8_t
 trees::TerrainModel terrainForCloud(const std::vector<DensePoint>& pts,
                                     const ground::GroundLattice* lattice,
                                     const trees::TreeOptions& tree_opts);
+/** Same over a DenseMap read tile by tile (with a lattice only the bounds
+ * are needed; without one every point is loaded for the DTM). */
+trees::TerrainModel terrainForCloud(const DenseMap& dense,
+                                    const ground::GroundLattice* lattice,
+                                    const trees::TreeOptions& tree_opts);
+
+/** The rule of classifyPoints for one point at a time. */
+class PointClassifier
+{
+   public:
+	PointClassifier(const trees::TerrainModel& terrain,
+	                const std::vector<map::TreeRecord>& trees,
+	                const OutputOptions& o);
+	uint8_t classify(const Eigen::Vector3d& p) const;
+
+   private:
+	const trees::TerrainModel& terrain_;
+	const std::vector<map::TreeRecord>& trees_;
+	const OutputOptions& o_;
+	/** Stems indexed on a 1 m grid by every cell their circle + margin
+	 * touches. */
+	std::unordered_map<uint64_t, std::vector<size_t>> stem_cells_;
+};
 
 /** One LAS class per point by its height h above the terrain:
  * h < -3 ground_threshold: low noise (7); |h| <= ground_threshold: ground
@@ -55,6 +79,26 @@ struct ElevationGrid
 	std::vector<double> z;  ///< nx*ny, NaN = no data
 	double at(int ix, int iy) const { return z[ix + size_t(nx) * iy]; }
 	size_t cellsWithData() const;
+};
+
+/** Mean elevation per cell of points added one at a time (output frame). */
+class GroundGridBuilder
+{
+   public:
+	explicit GroundGridBuilder(double cell_m) : cell_m_(cell_m) {}
+	void add(const Eigen::Vector3d& p);
+	/** Corner on a multiple of the cell; NaN where no point fell. */
+	ElevationGrid grid() const;
+
+   private:
+	double cell_m_;
+	struct Cell
+	{
+		double sum = 0;
+		uint32_t n = 0;
+	};
+	std::unordered_map<uint64_t, Cell> cells_;
+	int64_t ix_lo_ = 0, ix_hi_ = -1, iy_lo_ = 0, iy_hi_ = -1;
 };
 
 /** Mean elevation of the ground-class points per cell, in the output frame

@@ -3,9 +3,19 @@
 // first return falling into each voxel is kept with its own attributes
 // (position, time, intensity, scan angle), so the exported cloud is thinned
 // to one point per voxel but every point is a real measurement.
+//
+// Memory is bounded by the area near the sensor, not by the area mapped:
+// the grid is split into square tiles (columns of tile_m × tile_m); tiles
+// farther from the sensor than any return can reach are moved to a spill
+// file (spillFar) and read back when a point falls into them again, so the
+// kept points are the same as with everything in memory.
+#include <forest_slam/core/spill_file.h>
+
 #include <Eigen/Core>
 
 #include <cstdint>
+#include <memory>
+#include <unordered_map>
 #include <vector>
 
 namespace forest_slam::outputs
@@ -21,37 +31,95 @@ struct DensePoint
 class DenseMap
 {
    public:
-	explicit DenseMap(double voxel_m);
+	/** tile_m <= 0: one tile (no spilling). Tiles are whole voxels wide. */
+	explicit DenseMap(double voxel_m, double tile_m = 0);
+	DenseMap(DenseMap&&) = default;
+	DenseMap& operator=(DenseMap&&) = default;
 
 	/** Keeps the point if its voxel is still empty; returns true if kept. */
 	bool add(const DensePoint& p);
 	/** Claims the voxel of `xyz` for a point whose other attributes the
 	 * caller fills in through the returned pointer (computed only for new
-	 * voxels); nullptr if the voxel is taken or out of the grid. */
+	 * voxels; valid until the next claim); nullptr if the voxel is taken or
+	 * out of the grid. A spilled tile is read back first. */
 	DensePoint* claim(const Eigen::Vector3f& xyz);
 	/** Hints the CPU to load the table slot of `xyz` (call a few dozen
 	 * points ahead of claim: the table is far larger than the caches). */
 	void prefetch(const Eigen::Vector3f& xyz) const;
 
-	const std::vector<DensePoint>& points() const { return points_; }
-	size_t size() const { return points_.size(); }
+	/** Moves the tiles whose square lies farther than radius_m
+	 * (horizontally) from `centre` to `spill` (the same file every call).
+	 * Returns the number of tiles moved. */
+	size_t spillFar(const Eigen::Vector2d& centre, double radius_m,
+	                const std::shared_ptr<core::SpillFile>& spill);
+
+	/** f(const std::vector<DensePoint>&) once per tile with points, in the
+	 * order the tiles were created, points in the order they were kept;
+	 * spilled tiles are read back one at a time (memory: one tile). */
+	template <class F>
+	void forEachTile(F&& f) const
+	{
+		std::vector<DensePoint> buf;
+		for (const auto& t : tiles_)
+		{
+			if (t->spilled)
+			{
+				spill_->readVector(t->spill_offset, t->spill_count, buf);
+				f(static_cast<const std::vector<DensePoint>&>(buf));
+			}
+			else if (!t->points.empty())
+				f(static_cast<const std::vector<DensePoint>&>(t->points));
+		}
+	}
+	/** Every point in one vector (forEachTile order): tests, small maps. */
+	std::vector<DensePoint> points() const;
+
+	size_t size() const { return size_; }
 	double voxelSize() const { return voxel_m_; }
 	/** Absolute time (UNIX seconds) of t_s = 0; set by the owner. */
 	double timeOrigin() const { return t0_; }
 	void setTimeOrigin(double t0) { t0_ = t0; }
+	/** Heap bytes of the tiles in memory. */
 	size_t memoryBytes() const;
+	/** Bytes of the points in spilled tiles. */
+	size_t spilledBytes() const;
+	size_t tiles() const { return tiles_.size(); }
+	size_t tilesSpilled() const;
 
    private:
+	struct Tile
+	{
+		int64_t tx = 0, ty = 0;  ///< tile index (voxel index / tile_vox_)
+		std::vector<DensePoint> points;
+		// Open addressing (linear probing) on packed voxel keys: no
+		// allocation per voxel; lookups miss the CPU cache, so callers
+		// prefetch() a batch of points ahead of claiming them.
+		std::vector<uint64_t> keys;   ///< kEmpty or packed voxel key
+		std::vector<uint32_t> index;  ///< into points, per slot
+		size_t mask = 0;
+		bool spilled = false;
+		bool changed = true;  ///< since it was last written to the spill
+		uint64_t spill_offset = 0;
+		size_t spill_count = 0;
+	};
 	double voxel_m_, inv_voxel_;
+	int64_t tile_vox_;  ///< voxels per tile edge; 0: one tile
 	double t0_ = 0;
-	std::vector<DensePoint> points_;
-	// Open addressing (linear probing) on packed voxel keys: no allocation
-	// per voxel; lookups miss the CPU cache, so callers prefetch() a batch
-	// of points ahead of claiming them.
-	std::vector<uint64_t> keys_;   ///< kEmpty or packed voxel key
-	std::vector<uint32_t> index_;  ///< into points_, per slot
-	size_t mask_ = 0;
-	void grow();
+	size_t size_ = 0;
+	std::vector<std::unique_ptr<Tile>> tiles_;       ///< creation order
+	std::unordered_map<uint64_t, uint32_t> by_key_;  ///< tile key -> index
+	mutable uint64_t last_key_ = 0;  ///< tile of the last lookup (cache)
+	mutable uint32_t last_tile_ = 0;
+	mutable bool have_last_ = false;
+	std::shared_ptr<core::SpillFile> spill_;
+
+	uint64_t tileKeyOf(uint64_t voxel_key) const;
+	/** Tile of a voxel key, nullptr if none. */
+	Tile* findTile(uint64_t voxel_key) const;
+	Tile& tileFor(uint64_t voxel_key);
+	static void grow(Tile& t);
+	void reload(Tile& t);
+	DensePoint* claimIn(Tile& t, uint64_t key, const Eigen::Vector3f& xyz);
 };
 
 }  // namespace forest_slam::outputs

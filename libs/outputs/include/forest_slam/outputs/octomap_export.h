@@ -23,5 +23,12 @@ struct OctomapSummary
 OctomapSummary writeOctomap(const Keyframes& keyframes, double resolution_m,
                             double max_range_m, const std::string& bt_path,
                             const std::string& ot_path = "");
+/** Same, the clouds read one at a time through `cloud_of(i)` (e.g.
+ * RunCollector::keyframeCloud: they may be on disk). */
+OctomapSummary writeOctomap(const Keyframes& keyframes,
+                            const KeyframeCloudLoader& cloud_of,
+                            double resolution_m, double max_range_m,
+                            const std::string& bt_path,
+                            const std::string& ot_path = "");
 
 }  // namespace forest_slam::outputs

@@ -36,6 +36,14 @@ struct OutputOptions : public mrpt::config::CLoadableOptions
 	double dense_voxel_m = 0.05;
 	double dense_max_range_m = 40.0;
 
+	// Memory bounded by area: dense-map tiles (dense_tile_m squares) farther
+	// than dense_max_range_m + dense_tile_m from the sensor and every
+	// keyframe cloud go to an unnamed scratch file in spill_dir (empty:
+	// $TMPDIR, else /tmp), read back when needed; the outputs are the same.
+	bool spill_to_disk = true;
+	double dense_tile_m = 20.0;
+	std::string spill_dir;
+
 	// OctoMap: ray casting from each keyframe's sensor position.
 	double octomap_resolution_m = 0.2;
 	double octomap_max_range_m = 25.0;

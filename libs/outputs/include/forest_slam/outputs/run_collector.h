@@ -14,6 +14,7 @@
 
 #include <Eigen/Geometry>
 #include <functional>
+#include <memory>
 #include <optional>
 #include <vector>
 
@@ -33,10 +34,17 @@ struct KeyframeCloud
 	double t_s = 0;  ///< the scan's reference time (first firing)
 	Eigen::Isometry3d sensor_pose = Eigen::Isometry3d::Identity();  ///< -> map
 	std::vector<Eigen::Vector3f> points;  ///< sensor frame at t_s, deskewed
+	/** With [outputs] spill_to_disk the points live in the collector's
+	 * spill file instead (points empty): RunCollector::keyframeCloud. */
+	uint64_t spill_offset = 0;
+	size_t spill_count = 0;
+	bool spilled = false;
 	EIGEN_MAKE_ALIGNED_OPERATOR_NEW
 };
 using Keyframes =
     std::vector<KeyframeCloud, Eigen::aligned_allocator<KeyframeCloud>>;
+/** The points of keyframe i (writers that read clouds one at a time). */
+using KeyframeCloudLoader = std::function<std::vector<Eigen::Vector3f>(size_t)>;
 
 struct GnssEpoch
 {
@@ -64,8 +72,9 @@ class RunCollector
 	             const ground::GroundLattice* lattice);
 	/** Same, with the lidar pose at any time of the sweep known (e.g. from
 	 * a trajectory file): each firing column moves with its own pose. */
-	void addScan(const core::ScanPoints& scan, const core::StampedPose& pose,
-	             const std::function<bool(double, Eigen::Isometry3d&)>& pose_at);
+	void addScan(
+	    const core::ScanPoints& scan, const core::StampedPose& pose,
+	    const std::function<bool(double, Eigen::Isometry3d&)>& pose_at);
 	/** Collects the scan still held by addScan (call once at the end of the
 	 * run, before writing outputs); its motion is extrapolated. */
 	void finish();
@@ -74,7 +83,11 @@ class RunCollector
 	 * ignored). */
 	void addGnss(const mrpt::obs::CObservation& obs);
 
+	/** Poses and times; the clouds through keyframeCloud (they may be on
+	 * disk). */
 	const Keyframes& keyframes() const { return keyframes_; }
+	/** The points of keyframe i (sensor frame), read back if spilled. */
+	std::vector<Eigen::Vector3f> keyframeCloud(size_t i) const;
 	/** Loop correction: the keyframe's sensor pose after the back-end. */
 	void setKeyframePose(size_t i, const Eigen::Isometry3d& T)
 	{
@@ -85,6 +98,10 @@ class RunCollector
 	const ground::GroundLattice* groundLattice() const { return lattice_; }
 	const OutputOptions& options() const { return o_; }
 	size_t scans() const { return scans_; }
+	/** Heap bytes of the keyframe clouds held in memory. */
+	size_t keyframeBytes() const;
+	/** Bytes moved to the spill file (dense tiles, keyframe clouds). */
+	size_t spilledBytes() const;
 	/** CPU time spent in addScan, total [s]. */
 	double collectSeconds() const { return collect_s_; }
 
@@ -93,6 +110,8 @@ class RunCollector
 	float min_range_m_, max_range_m_;
 	Keyframes keyframes_;
 	DenseMap dense_;
+	std::shared_ptr<core::SpillFile> spill_;  ///< created when first needed
+	core::SpillFile& spill();
 	std::vector<GnssEpoch> gnss_;
 	const ground::GroundLattice* lattice_ = nullptr;
 	size_t scans_ = 0, scans_since_keyframe_ = 0;
@@ -111,8 +130,9 @@ class RunCollector
 	};
 	std::optional<Pending> pending_;
 
-	void collect(const core::ScanPoints& scan, const core::StampedPose& pose,
-	             const std::function<bool(double, Eigen::Isometry3d&)>* pose_at);
+	void collect(
+	    const core::ScanPoints& scan, const core::StampedPose& pose,
+	    const std::function<bool(double, Eigen::Isometry3d&)>* pose_at);
 };
 
 }  // namespace forest_slam::outputs

@@ -18,5 +18,11 @@ mrpt::maps::CSimpleMap toSimpleMap(const Keyframes& keyframes,
 
 /** CSimpleMap::saveToFile (gzip MRPT archive) through a temp file + rename. */
 void writeSimpleMap(const std::string& path, const mrpt::maps::CSimpleMap& sm);
+/** Same file from keyframe poses and clouds read one at a time through
+ * `cloud_of(i)` (RunCollector::keyframeCloud): memory for one keyframe, not
+ * the whole map; the bytes are those saveToFile writes for the same map. */
+void writeSimpleMap(const std::string& path, const Keyframes& keyframes,
+                    const KeyframeCloudLoader& cloud_of,
+                    const std::string& sensor_label = "lidar");
 
 }  // namespace forest_slam::outputs

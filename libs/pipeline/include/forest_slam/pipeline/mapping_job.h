@@ -4,6 +4,7 @@
 // output atomically into the output folder.
 #include <forest_slam/pipeline/mapping_config.h>
 #include <forest_slam/pipeline/mapping_pipeline.h>
+#include <forest_slam/pipeline/memory_report.h>
 #include <forest_slam/pipeline/observation_source.h>
 
 #include <string>
@@ -31,6 +32,10 @@ struct MappingResult
 	bool interrupted = false;  ///< SIGINT/SIGTERM
 	std::string damage_message;
 	std::vector<std::string> outputs;  ///< files written
+	/** Memory every [pipeline] memory_report_period_s of data, and at the
+	 * end of mapping (before the outputs are written). */
+	std::vector<MemorySample> memory_curve;
+	MemorySample memory_end;
 };
 
 /** Runs the job. Throws core::ConfigError / std::runtime_error for problems
@@ -47,8 +52,9 @@ MappingResult runMapping(const MappingJob& job, const MappingConfig& cfg,
 /** Writes the outputs selected in [outputs] (outputs::writeRunOutputs:
  * trajectory, keyframes, forest.map, LAS, OctoMap, trees, DTM, report) and
  * run_summary.json into `out_dir`; returns the paths written. */
-std::vector<std::string> writeOutputs(
-	const MappingPipeline& p, const MappingResult& r, const std::string& out_dir);
+std::vector<std::string> writeOutputs(const MappingPipeline& p,
+                                      const MappingResult& r,
+                                      const std::string& out_dir);
 
 /** Reads a forest.map written by writeOutputs. */
 std::shared_ptr<map::CForestMap> loadForestMap(const std::string& path);

@@ -35,11 +35,13 @@ struct RunStats
 	uint64_t scans_outside_poses = 0;  ///< no pose for their time
 	uint64_t scans_unreadable = 0;	///< unknown model / malformed image
 	uint64_t scans_degenerate = 0;	///< odometry: weak geometry
-	uint64_t scans_unregistered = 0;  ///< odometry: motion model carried the pose
+	uint64_t scans_unregistered =
+	    0;  ///< odometry: motion model carried the pose
 	/** Online, pipeline behind the sensors: motion-model pose only, not
 	 * registered nor inserted into the map (setLightScans). */
 	uint64_t scans_light = 0;
-	uint64_t scans_imu = 0;	 ///< odometry: IMU rotation used for prediction + deskew
+	uint64_t scans_imu =
+	    0;  ///< odometry: IMU rotation used for prediction + deskew
 	uint64_t imu = 0, gnss = 0, other = 0;
 	uint64_t imu_rejected = 0;  ///< non-finite or not after the previous sample
 	uint64_t scans_duplicate =
@@ -87,6 +89,8 @@ class MappingPipeline
 	/** nullptr unless [loop] enabled (odometry pose source); final after
 	 * finish(). */
 	const loop::BackEnd* backEnd() const { return backend_.get(); }
+	/** nullptr unless pose_source = odometry. */
+	const odometry::LidarOdometry* odometry() const { return odometry_.get(); }
 	/** nullptr when [trees] layer_enabled = false. */
 	const trees::TreeLayer* treeLayer() const { return tree_layer_.get(); }
 

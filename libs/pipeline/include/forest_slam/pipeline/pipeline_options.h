@@ -32,6 +32,10 @@ struct PipelineOptions : public mrpt::config::CLoadableOptions
 	 * not used (doc/reliability.md). */
 	double gnss_max_speed_mps = 20.0;
 	double gnss_jump_tolerance_m = 20.0;
+	/** Every this many seconds of data the run logs its memory (RSS and
+	 * the big containers) and adds a point to run_summary.json's memory
+	 * curve; 0 = only at the end. */
+	double memory_report_period_s = 300.0;
 
 	void loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 							const std::string& section) override;

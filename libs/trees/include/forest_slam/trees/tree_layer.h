@@ -14,12 +14,14 @@
 //    ground cell so far: the stem band, fine enough for the DBH fit, which
 //    the map's 0.2 m / 0.4 m feature voxels are not.
 // Tree tops come from the map's own voxel clouds above the stem band.
+#include <forest_slam/core/spill_file.h>
 #include <forest_slam/map/forest_map.h>
 #include <forest_slam/trees/tree_options.h>
 
 #include <Eigen/Geometry>
 
 #include <cstdint>
+#include <memory>
 #include <unordered_map>
 #include <vector>
 
@@ -79,6 +81,10 @@ class TreeLayer
 	/** Stem-band points of a column (voxel centroids), for diagnostics. */
 	std::vector<Eigen::Vector3f> stemPoints(const ColumnKey& k) const;
 	const TreeLayerStats& stats() const { return stats_; }
+	/** Heap bytes of the stored columns (estimate, core/memory.h). */
+	size_t memoryBytes() const;
+	/** Bytes of stem-band voxels now on disk. */
+	size_t spilledBytes() const;
 
    private:
 	/** Stem-band voxels (exact centroids, like map::VoxelCloud) as a sorted
@@ -97,7 +103,10 @@ class TreeLayer
 		}
 		/** Merges the buffer if it holds more than `max_pending` points. */
 		void compact(size_t max_pending = 0);
-		size_t size() const { return voxels_.size() + pending_.size(); }
+		size_t size() const
+		{
+			return (spilled_ ? spill_count_ : voxels_.size()) + pending_.size();
+		}
 		/** Calls f(centroid, mean viewing direction, not normalised) for
 		 * every voxel (compact() first). */
 		template <class F>
@@ -107,6 +116,21 @@ class TreeLayer
 				f(centroid(v), Eigen::Vector3f(v.dir / float(v.count)));
 		}
 		void transform(const Eigen::Isometry3f& T);
+		/** Moves the voxels to `f` (compact() first); a set read back and
+		 * not changed since is not written again. */
+		void spill(core::SpillFile& f);
+		/** Reads spilled voxels back. */
+		void reload(const core::SpillFile& f);
+		bool spilled() const { return spilled_; }
+		size_t spilledBytes() const
+		{
+			return spilled_ ? spill_count_ * sizeof(Voxel) : 0;
+		}
+		size_t memoryBytes() const
+		{
+			return voxels_.capacity() * sizeof(Voxel) +
+			       pending_.capacity() * sizeof(Pending);
+		}
 
 	   private:
 		struct Voxel
@@ -123,6 +147,10 @@ class TreeLayer
 		double voxel_m_;
 		std::vector<Voxel> voxels_;  ///< sorted by key
 		std::vector<Pending> pending_;
+		bool spilled_ = false;
+		bool changed_ = true;  ///< since last written to the spill file
+		uint64_t spill_offset_ = 0;
+		size_t spill_count_ = 0;
 		uint64_t keyOf(const Eigen::Vector3f& p) const;
 		/** Sorts `add` and merges it into voxels_ (equal keys summed). */
 		void mergeIn(std::vector<Voxel>& add);
@@ -145,6 +173,11 @@ class TreeLayer
 
 	TreeOptions o_;
 	double column_m_;
+	std::unique_ptr<core::SpillFile> spill_;  ///< layer_spill_to_disk
+	/** Column's stem voxels in memory (read back if spilled). */
+	SortedVoxels& resident(Column& c);
+	/** Spills detected columns no scan from `sensor` can reach. */
+	void spillFar(const Eigen::Vector3d& sensor);
 	std::unordered_map<ColumnKey, Column, ColumnKeyHash> cols_;
 	uint32_t next_id_ = 1;
 	TreeLayerStats stats_;

@@ -80,6 +80,10 @@ struct TreeOptions : public mrpt::config::CLoadableOptions
 	/** A column is detected when the sensor is this far from its square. */
 	double layer_complete_distance_m = 30;
 	double layer_margin_m = 2;  ///< points from neighbouring columns
+	/** Stem-band voxels of detected columns out of the sensor's reach go
+	 * to an unnamed scratch file ($TMPDIR, else /tmp) and are read back
+	 * when needed again: memory bounded by the area near the sensor. */
+	bool layer_spill_to_disk = true;
 
 	void loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 	                        const std::string& section) override;

@@ -1,0 +1,52 @@
+#pragma once
+// An unnamed scratch file for data a long run no longer needs in memory
+// (dense-map tiles far from the sensor, keyframe clouds, finished tree-layer
+// columns): blobs are appended and read back by offset. The file has no
+// name (O_TMPFILE, or created and unlinked at once), so the kernel frees it
+// when the process ends, kill -9 included: nothing to clean up, nothing
+// left behind.
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace forest_slam::core
+{
+class SpillFile
+{
+   public:
+	/** `dir` empty: $TMPDIR, else /tmp. Throws std::runtime_error naming
+	 * the folder when no file can be created there. */
+	explicit SpillFile(const std::string& dir = "");
+	~SpillFile();
+	SpillFile(const SpillFile&) = delete;
+	SpillFile& operator=(const SpillFile&) = delete;
+
+	/** Appends `bytes` bytes; returns their offset. Throws on I/O errors
+	 * (disk full) naming the folder. */
+	uint64_t append(const void* data, size_t bytes);
+	void read(uint64_t offset, void* data, size_t bytes) const;
+
+	template <class T>
+	uint64_t appendVector(const std::vector<T>& v)
+	{
+		return append(v.data(), v.size() * sizeof(T));
+	}
+	template <class T>
+	void readVector(uint64_t offset, size_t n, std::vector<T>& v) const
+	{
+		v.resize(n);
+		read(offset, v.data(), n * sizeof(T));
+	}
+
+	/** Bytes written so far (the file only grows). */
+	uint64_t size() const { return end_; }
+	const std::string& dir() const { return dir_; }
+
+   private:
+	std::string dir_;
+	int fd_ = -1;
+	uint64_t end_ = 0;
+};
+
+}  // namespace forest_slam::core

@@ -1,0 +1,248 @@
+#!/usr/bin/env python3
+"""Whole-pipeline benchmark (issue 11): forest-slam map on forest-sim
+scenarios with the shipped configs (odometry, tree layer and every default
+output on), then forest-eval. Prints and optionally writes as JSON:
+throughput (scans/s over wall and CPU time, real-time factor for a 10 Hz
+VLP-16), per-stage milliseconds (median, p95, max), peak RSS and the memory
+curve (RSS every [pipeline] memory_report_period_s of data), the map's
+memory, and the accuracy figures (ATE, RPE, return to start, tree recall /
+precision / DBH RMSE) so that speed is never bought with accuracy unseen.
+
+Scenarios (BUILD/bench-sim/<name>[-seed<N>], generated once, reused after):
+  handheld  ini/sim-handheld.ini (421 s, 4214 scans)
+  robot     ini/sim-robot.ini    (952 s, 9518 scans)
+  long      ini/sim-robot.ini with [motion] loops = LONG_LOOPS (default 11:
+            about 58 min, 35,000 scans): the memory-growth run; on demand
+            only (`--scenarios long`), never in `make test`.
+Environment: MAX_SCANS=N maps only the first N scans of each scenario;
+LONG_LOOPS=N laps of the long scenario.
+
+Usage: scripts/bench_pipeline.py [--build DIR] [--scenarios handheld robot]
+           [--seed N] [--json FILE] [--out DIR]
+"""
+import argparse
+import json
+import os
+import re
+import statistics
+import subprocess
+import sys
+import time
+
+SIM_INI = {"handheld": "ini/sim-handheld.ini", "robot": "ini/sim-robot.ini",
+           "long": "ini/sim-robot.ini"}
+MAP_INI = {"handheld": "ini/vlp16-handheld.ini",
+           "robot": "ini/vlp16-robot.ini", "long": "ini/vlp16-robot.ini"}
+
+
+def die(msg):
+    print("bench-pipeline: " + msg, file=sys.stderr)
+    sys.exit(1)
+
+
+def run(cmd, log, env=None):
+    """Runs cmd with stdout+stderr into log; dies naming the log on
+    failure."""
+    with open(log, "w") as f:
+        r = subprocess.run(cmd, stdout=f, stderr=subprocess.STDOUT, env=env)
+    if r.returncode != 0:
+        die(f"{' '.join(cmd)} failed (exit {r.returncode}), see {log}")
+
+
+def set_ini_key(text, section, key, value):
+    """Sets `key = value` in [section] of an INI text (added if missing)."""
+    out, in_sec, done = [], False, False
+    for line in text.splitlines():
+        m = re.match(r"\s*\[(\w+)\]", line)
+        if m:
+            if in_sec and not done:
+                out.append(f"{key} = {value}")
+                done = True
+            in_sec = m.group(1) == section
+        elif in_sec and re.match(rf"\s*{key}\s*=", line):
+            line, done = f"{key} = {value}", True
+        out.append(line)
+    if not done:
+        if not in_sec:
+            out.append(f"[{section}]")
+        out.append(f"{key} = {value}")
+    return "\n".join(out) + "\n"
+
+
+def scenario_dir(build, name, seed, long_loops):
+    """Generates the forest-sim scenario unless its folder already holds a
+    complete run of the same configuration (cache by name, seed, laps)."""
+    tag = name if name != "long" else f"long{long_loops}"
+    d = os.path.join(build, "bench-sim", tag + ("" if seed == 1 else f"-seed{seed}"))
+    if os.path.isfile(os.path.join(d, "scenario.ini")) and os.path.isfile(
+            os.path.join(d, "run.rawlog")):
+        return d
+    os.makedirs(os.path.dirname(d), exist_ok=True)
+    ini = SIM_INI[name]
+    if name == "long":
+        text = set_ini_key(open(ini).read(), "motion", "loops", long_loops)
+        ini = d + ".ini"
+        with open(ini, "w") as f:
+            f.write(text)
+    print(f"generating forest-sim {name} (seed {seed}) into {d}", flush=True)
+    run([os.path.join(build, "bin", "forest-sim"), "--config", ini, "--out", d,
+         "--seed", str(seed), "--threads", "2", "--progress", "log"],
+        d + ".log")
+    return d
+
+
+def time_v(path):
+    """Peak RSS [MB] and CPU seconds from a /usr/bin/time -v report."""
+    text = open(path).read()
+
+    def num(label):
+        m = re.search(re.escape(label) + r":\s*([0-9.]+)", text)
+        return float(m.group(1)) if m else 0.0
+    return {"peak_rss_mb": num("Maximum resident set size (kbytes)") / 1024,
+            "cpu_s": num("User time (seconds)") + num("System time (seconds)")}
+
+
+def bench(build, name, seed, out_root, max_scans, long_loops):
+    sim = scenario_dir(build, name, seed, long_loops)
+    out = os.path.join(out_root, name + ("" if seed == 1 else f"-seed{seed}"))
+    os.makedirs(out, exist_ok=True)
+    cfg = open(MAP_INI[name]).read()
+    if max_scans:
+        cfg = set_ini_key(cfg, "pipeline", "max_scans", max_scans)
+    ini = os.path.join(out, "config.ini")
+    with open(ini, "w") as f:
+        f.write(cfg)
+    bin_dir = os.path.join(build, "bin")
+    t0 = time.time()
+    run(["/usr/bin/time", "-v", "-o", os.path.join(out, "time.txt"),
+         os.path.join(bin_dir, "forest-slam"), "map", "--config", ini,
+         "--rawlog", os.path.join(sim, "run.rawlog"), "--out", out,
+         "--progress", "log"], os.path.join(out, "map.log"))
+    wall = time.time() - t0
+    tv = time_v(os.path.join(out, "time.txt"))
+    summ = json.load(open(os.path.join(out, "run_summary.json")))
+    run([os.path.join(bin_dir, "forest-eval"), "traj", "--gt",
+         os.path.join(sim, "gt_trajectory.tum"), "--est",
+         os.path.join(out, "trajectory.tum"), "--json",
+         os.path.join(out, "traj.json")], os.path.join(out, "traj.txt"))
+    traj = json.load(open(os.path.join(out, "traj.json")))
+    trees = None
+    if os.path.isfile(os.path.join(out, "trees.csv")):
+        run([os.path.join(bin_dir, "forest-eval"), "trees", "--gt",
+             os.path.join(sim, "gt_trees.csv"), "--est",
+             os.path.join(out, "trees.csv"), "--max-range-m", "15", "--traj",
+             os.path.join(sim, "gt_trajectory.tum"), "--json",
+             os.path.join(out, "trees.json")], os.path.join(out, "trees.txt"))
+        tj = json.load(open(os.path.join(out, "trees.json")))
+        trees = {"recall": tj["detection"]["recall"],
+                 "precision": tj["detection"]["precision"],
+                 "dbh_rmse_m": tj["dbh"]["rmse_m"],
+                 "dbh_bias_m": tj["dbh"]["bias_m"],
+                 "position_rmse_m": tj["position_err_m"]["rmse"],
+                 "trees": summ.get("trees", 0)}
+    scans = summ["scans_mapped"]
+    data_s = summ["data_seconds"]
+    mem = summ.get("memory", {})
+    rts = traj.get("return_to_start", {}).get("estimate_vs_gt", {})
+    return {
+        "scenario": name, "seed": seed, "sim_dir": sim, "out_dir": out,
+        "scans": scans, "data_s": data_s,
+        "path_m": traj.get("vertical_drift", {}).get("distance_m"),
+        "wall_s": wall, "cpu_s": tv["cpu_s"],
+        "mapping_wall_s": summ["wall_seconds"],
+        "output_write_s": summ.get("output_write_seconds"),
+        "scans_per_s": summ["scans_per_second"],
+        "scans_per_cpu_s": scans / tv["cpu_s"] if tv["cpu_s"] else 0,
+        # A VLP-16 at 10 Hz: data seconds per wall second of mapping.
+        "real_time_factor": summ["real_time_factor"],
+        "real_time_factor_cpu": data_s / tv["cpu_s"] if tv["cpu_s"] else 0,
+        "stage_ms": summ["stage_ms"],
+        "peak_rss_mb": tv["peak_rss_mb"],
+        "peak_rss_mapping_mb": max([c["rss_mb"] for c in mem.get("curve", [])]
+                                   + [mem.get("end_of_mapping", {}).get("rss_mb", 0)]),
+        "memory_end_of_mapping": mem.get("end_of_mapping"),
+        "memory_curve": [{"data_s": c["data_s"], "scans": c["scans"],
+                          "rss_mb": c["rss_mb"]} for c in mem.get("curve", [])],
+        "map_memory_mb": mem.get("end_of_mapping", {}).get("forest_map_mb"),
+        "ate_m": traj["ate"]["aligned_se3"]["trans_m"]["rmse"],
+        "rpe_trans_pct": traj["rpe"]["trans_err_pct"],
+        "rpe_rot_deg_per_m": traj["rpe"]["rot_err_deg_per_m"],
+        "return_to_start_m": rts.get("total_trans_m"),
+        "return_to_start_deg": rts.get("angle_deg"),
+        "trees": trees,
+    }
+
+
+def show(r):
+    print(f"== {r['scenario']} (seed {r['seed']}): {r['scans']} scans, "
+          f"{r['data_s']:.0f} s of data, {r['path_m'] or 0:.0f} m")
+    print(f"  throughput  {r['scans_per_s']:.1f} scans/s wall, "
+          f"{r['real_time_factor']:.2f}x real time; CPU {r['cpu_s']:.0f} s: "
+          f"{r['scans_per_cpu_s']:.1f} scans per CPU s, "
+          f"{r['real_time_factor_cpu']:.2f}x real time per core "
+          f"(targets >= 100 scans/s, 10x); outputs written in "
+          f"{r['output_write_s'] or 0:.1f} s")
+    print("  stage ms    " + ", ".join(
+        f"{k} {v['median']:.1f}/{v['p95']:.1f}/{v['max']:.0f}"
+        for k, v in r["stage_ms"].items()) + "  (median/p95/max)")
+    m = r["memory_end_of_mapping"] or {}
+    print(f"  memory      peak RSS {r['peak_rss_mb']:.0f} MB (mapping "
+          f"{r['peak_rss_mapping_mb']:.0f} MB; target <= 2048); at the end "
+          f"of mapping: dense map {m.get('dense_map_mb', 0):.0f}, keyframes "
+          f"{m.get('keyframes_mb', 0):.0f}, submaps "
+          f"{m.get('forest_map_mb', 0):.0f}, tree layer "
+          f"{m.get('tree_layer_mb', 0):.0f}, local map "
+          f"{m.get('local_map_mb', 0):.0f} MB; spilled "
+          f"{m.get('spilled_mb', 0):.0f} MB")
+    if r["memory_curve"]:
+        print("  RSS curve   " + "  ".join(
+            f"{c['data_s'] / 60:.0f}min:{c['rss_mb']:.0f}MB"
+            for c in r["memory_curve"]))
+    print(f"  trajectory  ATE {r['ate_m']:.3f} m, RPE "
+          f"{r['rpe_trans_pct']:.3f} % / {r['rpe_rot_deg_per_m']:.4f} deg/m, "
+          f"return to start {r['return_to_start_m'] or 0:.3f} m "
+          f"{r['return_to_start_deg'] or 0:.2f} deg")
+    t = r["trees"]
+    if t:
+        print(f"  trees       recall {t['recall']:.3f}, precision "
+              f"{t['precision']:.3f}, DBH RMSE {100 * t['dbh_rmse_m']:.2f} cm "
+              f"(bias {100 * t['dbh_bias_m']:+.2f} cm), position RMSE "
+              f"{100 * t['position_rmse_m']:.1f} cm, {t['trees']} stems")
+    sys.stdout.flush()
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--build", default="build")
+    ap.add_argument("--scenarios", nargs="+", default=["handheld", "robot"],
+                    choices=sorted(SIM_INI))
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--json", help="write all figures to this file")
+    ap.add_argument("--out", help="run folders (default BUILD/bench-pipeline)")
+    a = ap.parse_args()
+    for b in ("forest-sim", "forest-slam", "forest-eval"):
+        if not os.access(os.path.join(a.build, "bin", b), os.X_OK):
+            die(f"{a.build}/bin/{b} not found (build first)")
+    max_scans = int(os.environ.get("MAX_SCANS", "0") or 0)
+    long_loops = int(os.environ.get("LONG_LOOPS", "11") or 11)
+    out_root = a.out or os.path.join(a.build, "bench-pipeline")
+    print(f"whole-pipeline benchmark on {os.cpu_count()} cores, load "
+          f"{os.getloadavg()[0]:.1f}" + (f", MAX_SCANS={max_scans}" if max_scans else ""))
+    results = []
+    for s in a.scenarios:
+        r = bench(a.build, s, a.seed, out_root, max_scans, long_loops)
+        show(r)
+        results.append(r)
+    if a.json:
+        tmp = a.json + ".tmp"
+        with open(tmp, "w") as f:
+            json.dump({"machine": {"cores": os.cpu_count(),
+                                   "load_at_start": os.getloadavg()[0]},
+                       "max_scans": max_scans, "results": results}, f,
+                      indent=1)
+        os.replace(tmp, a.json)
+        print(f"wrote {a.json}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,56 @@
+// The scratch file of long runs: blobs read back as written, no name left
+// in the folder, a clear error for a folder that cannot take one.
+#include <forest_slam/core/spill_file.h>
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+#include <filesystem>
+#include <numeric>
+
+using namespace forest_slam;
+namespace fs = std::filesystem;
+
+TEST(SpillFile, BlobsReadBackAsWrittenAndNoFileLeftInTheFolder)
+{
+	const fs::path dir =
+	    fs::temp_directory_path() /
+	    ("fs_spill_" +
+	     std::to_string(::testing::UnitTest::GetInstance()->random_seed()) +
+	     "_" + std::to_string(getpid()));
+	fs::create_directories(dir);
+	{
+		core::SpillFile f(dir.string());
+		std::vector<double> a(100000);
+		std::iota(a.begin(), a.end(), 0.5);
+		const std::vector<int> b = {7, -3, 12};
+		const uint64_t oa = f.appendVector(a), ob = f.appendVector(b);
+		EXPECT_EQ(oa, 0u);
+		EXPECT_EQ(ob, a.size() * sizeof(double));
+		EXPECT_EQ(f.size(), ob + b.size() * sizeof(int));
+		std::vector<int> b2;
+		f.readVector(ob, b.size(), b2);
+		EXPECT_EQ(b2, b);
+		std::vector<double> a2;
+		f.readVector(oa, a.size(), a2);
+		EXPECT_EQ(a2, a);
+		EXPECT_THROW(f.read(f.size() - 2, a2.data(), 4), std::logic_error);
+		// Unnamed: nothing to clean up, even after kill -9.
+		EXPECT_TRUE(fs::is_empty(dir));
+	}
+	fs::remove_all(dir);
+}
+
+TEST(SpillFile, MissingFolderIsAClearError)
+{
+	try
+	{
+		core::SpillFile f("/nonexistent/forest-slam-spill");
+		FAIL() << "no error";
+	}
+	catch (const std::runtime_error& e)
+	{
+		EXPECT_NE(std::string(e.what()).find("/nonexistent/forest-slam-spill"),
+		          std::string::npos)
+		    << e.what();
+	}
+}

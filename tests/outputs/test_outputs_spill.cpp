@@ -1,0 +1,161 @@
+// Memory bounded by area (doc/performance.md): dense-map tiles and keyframe
+// clouds moved to the spill file give the same points and files as keeping
+// everything in memory.
+#include "test_files.h"
+
+#include <forest_slam/outputs/dense_map.h>
+#include <forest_slam/outputs/run_collector.h>
+#include <forest_slam/outputs/simplemap_export.h>
+#include <gtest/gtest.h>
+#include <mrpt/maps/CSimplePointsMap.h>
+#include <mrpt/obs/CObservationPointCloud.h>
+
+#include <algorithm>
+#include <random>
+#include <tuple>
+
+using namespace forest_slam;
+
+namespace
+{
+std::vector<std::tuple<float, float, float, float, uint16_t>> sorted(
+    const std::vector<outputs::DensePoint>& pts)
+{
+	std::vector<std::tuple<float, float, float, float, uint16_t>> v;
+	for (const auto& p : pts)
+		v.emplace_back(p.xyz.x(), p.xyz.y(), p.xyz.z(), p.t_s, p.intensity);
+	std::sort(v.begin(), v.end());
+	return v;
+}
+}  // namespace
+
+TEST(DenseMapSpill, TilesOnDiskKeepTheSamePointsAsOneTableInMemory)
+{
+	// A sensor walking out 200 m and back: returns within 15 m of it, 5 m
+	// tiles, tiles beyond 20 m spilled after every "scan".
+	outputs::DenseMap all(0.05), tiled(0.05, 5.0);
+	auto spill = std::make_shared<core::SpillFile>();
+	std::mt19937 rng(3);
+	std::uniform_real_distribution<float> u(-15, 15);
+	size_t most_in_memory = 0, spilled_max = 0;
+	uint16_t n = 0;
+	auto scan = [&](float sx)
+	{
+		for (int k = 0; k < 4000; k++)
+		{
+			outputs::DensePoint p;
+			p.xyz = {sx + u(rng), u(rng), u(rng) / 10};
+			p.t_s = sx;
+			p.intensity = n++;
+			EXPECT_EQ(all.add(p), tiled.add(p));
+		}
+		tiled.spillFar(Eigen::Vector2d(sx, 0), 20.0, spill);
+		most_in_memory = std::max(most_in_memory, tiled.memoryBytes());
+		spilled_max = std::max(spilled_max, tiled.spilledBytes());
+	};
+	for (float x = 0; x <= 200; x += 2) scan(x);
+	for (float x = 200; x >= -10; x -= 2) scan(x);
+	EXPECT_EQ(all.size(), tiled.size());
+	EXPECT_GT(spilled_max, 0u);
+	EXPECT_GT(tiled.tilesSpilled(), 0u);
+	// Memory stays that of the tiles near the sensor.
+	EXPECT_LT(most_in_memory, all.memoryBytes() / 3);
+	EXPECT_EQ(sorted(all.points()), sorted(tiled.points()));
+	size_t seen = 0;
+	tiled.forEachTile([&](const std::vector<outputs::DensePoint>& pts)
+	                  { seen += pts.size(); });
+	EXPECT_EQ(seen, tiled.size());
+}
+
+TEST(DenseMapSpill, VoxelsOnTileBordersAreNotDuplicated)
+{
+	// Points straddling the tile edge x = 5 m (and negative tiles): one per
+	// voxel whatever tile the float coordinates round into.
+	outputs::DenseMap all(0.05), tiled(0.05, 5.0);
+	auto spill = std::make_shared<core::SpillFile>();
+	// First lookup in tile (-1, -1): its key is all ones.
+	tiled.prefetch(Eigen::Vector3f(-0.5f, -0.5f, 0));
+	const auto* first = tiled.claim(Eigen::Vector3f(-0.5f, -0.5f, 0));
+	ASSERT_NE(first, nullptr);
+	EXPECT_EQ(first->xyz, Eigen::Vector3f(-0.5f, -0.5f, 0));
+	ASSERT_NE(all.claim(Eigen::Vector3f(-0.5f, -0.5f, 0)), nullptr);
+	for (int i = -2000; i <= 2000; i++)
+		for (float base : {5.0f, -5.0f, 0.0f, -10.0f})
+		{
+			outputs::DensePoint p;
+			p.xyz = {base + i * 1e-5f, 0.01f * (i % 7), 0};
+			EXPECT_EQ(all.add(p), tiled.add(p)) << p.xyz.transpose();
+			if (i % 500 == 0)
+				tiled.spillFar(Eigen::Vector2d(1000, 1000), 1.0, spill);
+		}
+	EXPECT_EQ(all.size(), tiled.size());
+}
+
+TEST(KeyframeSpill, SimpleMapStreamedFromDiskEqualsTheInMemoryOne)
+{
+	const auto dir = test_support::freshTempDir("kfspill");
+	outputs::Keyframes kfs;
+	std::mt19937 rng(5);
+	std::uniform_real_distribution<float> u(-20, 20);
+	for (int k = 0; k < 5; k++)
+	{
+		outputs::KeyframeCloud kf;
+		kf.t_s = 1700000000.0 + k;
+		kf.sensor_pose.translation() = Eigen::Vector3d(k, 0.5 * k, 0.1);
+		kf.sensor_pose.linear() =
+		    Eigen::AngleAxisd(0.1 * k, Eigen::Vector3d::UnitZ())
+		        .toRotationMatrix();
+		for (int i = 0; i < 1000 + 100 * k; i++)
+			kf.points.emplace_back(u(rng), u(rng), u(rng) / 4);
+		kfs.push_back(kf);
+	}
+	const auto a = (dir / "a.simplemap").string(),
+	           b = (dir / "b.simplemap").string();
+	outputs::writeSimpleMap(a, outputs::toSimpleMap(kfs));
+	size_t loads = 0;
+	outputs::writeSimpleMap(b, kfs,
+	                        [&](size_t i)
+	                        {
+		                        loads++;
+		                        return kfs[i].points;
+	                        });
+	EXPECT_GE(loads, kfs.size());
+	mrpt::maps::CSimpleMap sa, sb;
+	ASSERT_TRUE(sa.loadFromFile(a));
+	ASSERT_TRUE(sb.loadFromFile(b)) << "streamed simplemap not readable";
+	ASSERT_EQ(sa.size(), sb.size());
+	for (size_t i = 0; i < sa.size(); i++)
+	{
+		mrpt::poses::CPose3DPDF::Ptr pa, pb;
+		mrpt::obs::CSensoryFrame::Ptr fa, fb;
+		sa.get(i, pa, fa);
+		sb.get(i, pb, fb);
+		EXPECT_EQ(pa->getMeanVal().asString(), pb->getMeanVal().asString());
+		auto oa =
+		    fa->getObservationByClass<mrpt::obs::CObservationPointCloud>();
+		auto ob =
+		    fb->getObservationByClass<mrpt::obs::CObservationPointCloud>();
+		ASSERT_TRUE(oa && ob);
+		EXPECT_EQ(oa->timestamp, ob->timestamp);
+		ASSERT_EQ(oa->pointcloud->size(), ob->pointcloud->size());
+		ASSERT_EQ(oa->pointcloud->size(), kfs[i].points.size());
+		for (size_t k = 0; k < kfs[i].points.size(); k += 97)
+		{
+			float xa, ya, za, xb, yb, zb;
+			oa->pointcloud->getPoint(k, xa, ya, za);
+			ob->pointcloud->getPoint(k, xb, yb, zb);
+			EXPECT_EQ(xa, xb);
+			EXPECT_EQ(ya, yb);
+			EXPECT_EQ(za, zb);
+		}
+	}
+}
+
+TEST(KeyframeSpill, BadSpillDirStopsBeforeTheRun)
+{
+	outputs::OutputOptions o;
+	o.spill_dir = "/nonexistent/spill-here";
+	EXPECT_THROW(outputs::RunCollector c(o), std::runtime_error);
+	o.spill_to_disk = false;
+	EXPECT_NO_THROW(outputs::RunCollector c(o));
+}
