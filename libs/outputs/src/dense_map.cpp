@@ -14,7 +14,7 @@ namespace
 constexpr uint64_t kEmpty = ~uint64_t(0);
 constexpr int64_t kHalf = int64_t(1) << 20;  // 21 bits per axis
 constexpr uint64_t kAxis = (uint64_t(1) << 21) - 1;
-constexpr size_t kFirstSlots = 1 << 12;
+constexpr size_t kFirstSlots = 1 << 8;  // small tiles stay small
 
 inline uint64_t mix(uint64_t x)
 {
