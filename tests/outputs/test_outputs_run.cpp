@@ -357,9 +357,11 @@ TEST(OutputsRun, SpilledDenseTilesGiveTheSameFilesAsAllInMemory)
 	EXPECT_EQ(readText(dir / "mem/dtm.asc"), readText(dir / "spill/dtm.asc"));
 	mrpt::maps::CSimpleMap sm_a, sm_b;
 	ASSERT_TRUE(sm_a.loadFromFile((dir / "mem/keyframes.simplemap").string()));
-	ASSERT_TRUE(sm_b.loadFromFile((dir / "spill/keyframes.simplemap").string()));
+	ASSERT_TRUE(
+	    sm_b.loadFromFile((dir / "spill/keyframes.simplemap").string()));
 	EXPECT_EQ(sm_a.size(), sm_b.size());
 	const auto summary = readText(dir / "spill/run_summary.json");
-	EXPECT_NE(summary.find("\"memory\": {\"peak_rss_mb\": "), std::string::npos);
+	EXPECT_NE(summary.find("\"memory\": {\"peak_rss_mb\": "),
+	          std::string::npos);
 	EXPECT_NE(summary.find("\"curve\": [{\"data_s\": "), std::string::npos);
 }
