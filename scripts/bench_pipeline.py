@@ -14,8 +14,10 @@ Scenarios (BUILD/bench-sim/<name>[-seed<N>], generated once, reused after):
   long      ini/sim-robot.ini with [motion] loops = LONG_LOOPS (default 11:
             about 58 min, 35,000 scans): the memory-growth run; on demand
             only (`--scenarios long`), never in `make test`.
-Environment: MAX_SCANS=N maps only the first N scans of each scenario;
-LONG_LOOPS=N laps of the long scenario.
+Environment: MAX_SCANS=N maps only the first N scans of each scenario (the
+trees are then scored within 15 m of the mapped path only);
+MEMORY_PERIOD_S=S sets [pipeline] memory_report_period_s (the RSS curve,
+default 300 s of data); LONG_LOOPS=N laps of the long scenario.
 
 Usage: scripts/bench_pipeline.py [--build DIR] [--scenarios handheld robot]
            [--seed N] [--json FILE] [--out DIR]
@@ -102,13 +104,15 @@ def time_v(path):
             "cpu_s": num("User time (seconds)") + num("System time (seconds)")}
 
 
-def bench(build, name, seed, out_root, max_scans, long_loops):
+def bench(build, name, seed, out_root, max_scans, long_loops, mem_period):
     sim = scenario_dir(build, name, seed, long_loops)
     out = os.path.join(out_root, name + ("" if seed == 1 else f"-seed{seed}"))
     os.makedirs(out, exist_ok=True)
     cfg = open(MAP_INI[name]).read()
     if max_scans:
         cfg = set_ini_key(cfg, "pipeline", "max_scans", max_scans)
+    if mem_period:
+        cfg = set_ini_key(cfg, "pipeline", "memory_report_period_s", mem_period)
     ini = os.path.join(out, "config.ini")
     with open(ini, "w") as f:
         f.write(cfg)
@@ -131,6 +135,8 @@ def bench(build, name, seed, out_root, max_scans, long_loops):
         run([os.path.join(bin_dir, "forest-eval"), "trees", "--gt",
              os.path.join(sim, "gt_trees.csv"), "--est",
              os.path.join(out, "trees.csv"), "--max-range-m", "15", "--traj",
+             # A shortened run is scored on the ground it covered.
+             os.path.join(out, "trajectory.tum") if max_scans else
              os.path.join(sim, "gt_trajectory.tum"), "--json",
              os.path.join(out, "trees.json")], os.path.join(out, "trees.txt"))
         tj = json.load(open(os.path.join(out, "trees.json")))
@@ -173,6 +179,11 @@ def bench(build, name, seed, out_root, max_scans, long_loops):
     }
 
 
+def fmt(v, spec):
+    """Number or n/a (RPE needs segments longer than the path, etc.)."""
+    return "n/a" if v is None else format(v, spec)
+
+
 def show(r):
     print(f"== {r['scenario']} (seed {r['seed']}): {r['scans']} scans, "
           f"{r['data_s']:.0f} s of data, {r['path_m'] or 0:.0f} m")
@@ -196,18 +207,22 @@ def show(r):
           f"{m.get('spilled_mb', 0):.0f} MB")
     if r["memory_curve"]:
         print("  RSS curve   " + "  ".join(
-            f"{c['data_s'] / 60:.0f}min:{c['rss_mb']:.0f}MB"
+            f"{c['data_s']:.0f}s:{c['rss_mb']:.0f}MB"
             for c in r["memory_curve"]))
-    print(f"  trajectory  ATE {r['ate_m']:.3f} m, RPE "
-          f"{r['rpe_trans_pct']:.3f} % / {r['rpe_rot_deg_per_m']:.4f} deg/m, "
-          f"return to start {r['return_to_start_m'] or 0:.3f} m "
-          f"{r['return_to_start_deg'] or 0:.2f} deg")
+    print(f"  trajectory  ATE {fmt(r['ate_m'], '.3f')} m, RPE "
+          f"{fmt(r['rpe_trans_pct'], '.3f')} % / "
+          f"{fmt(r['rpe_rot_deg_per_m'], '.4f')} deg/m, return to start "
+          f"{fmt(r['return_to_start_m'], '.3f')} m "
+          f"{fmt(r['return_to_start_deg'], '.2f')} deg")
     t = r["trees"]
     if t:
-        print(f"  trees       recall {t['recall']:.3f}, precision "
-              f"{t['precision']:.3f}, DBH RMSE {100 * t['dbh_rmse_m']:.2f} cm "
-              f"(bias {100 * t['dbh_bias_m']:+.2f} cm), position RMSE "
-              f"{100 * t['position_rmse_m']:.1f} cm, {t['trees']} stems")
+        cm = {k: None if t[k] is None else 100 * t[k]
+              for k in ("dbh_rmse_m", "dbh_bias_m", "position_rmse_m")}
+        print(f"  trees       recall {fmt(t['recall'], '.3f')}, precision "
+              f"{fmt(t['precision'], '.3f')}, DBH RMSE "
+              f"{fmt(cm['dbh_rmse_m'], '.2f')} cm (bias "
+              f"{fmt(cm['dbh_bias_m'], '+.2f')} cm), position RMSE "
+              f"{fmt(cm['position_rmse_m'], '.1f')} cm, {t['trees']} stems")
     sys.stdout.flush()
 
 
@@ -225,12 +240,14 @@ def main():
             die(f"{a.build}/bin/{b} not found (build first)")
     max_scans = int(os.environ.get("MAX_SCANS", "0") or 0)
     long_loops = int(os.environ.get("LONG_LOOPS", "11") or 11)
+    mem_period = os.environ.get("MEMORY_PERIOD_S", "")
     out_root = a.out or os.path.join(a.build, "bench-pipeline")
     print(f"whole-pipeline benchmark on {os.cpu_count()} cores, load "
           f"{os.getloadavg()[0]:.1f}" + (f", MAX_SCANS={max_scans}" if max_scans else ""))
     results = []
     for s in a.scenarios:
-        r = bench(a.build, s, a.seed, out_root, max_scans, long_loops)
+        r = bench(a.build, s, a.seed, out_root, max_scans, long_loops,
+                  mem_period)
         show(r)
         results.append(r)
     if a.json:
