@@ -5,7 +5,6 @@
 #include <cmath>
 #include <limits>
 #include <numeric>
-#include <unordered_map>
 
 namespace forest_slam::cluster
 {
@@ -47,102 +46,175 @@ void ClusterOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
 
 namespace
 {
+/** The points in structure-of-arrays form, permuted together with the
+ * point indices so that every range being split is contiguous: the
+ * distance loops then read contiguous floats, with no gather. */
+struct Points
+{
+	std::vector<float> x, y, z;
+	std::vector<uint32_t> idx;  ///< input index of each slot
+};
+
 /** Buffers reused by every split of one clustering. */
 struct SplitScratch
 {
-	std::vector<Eigen::Vector3f> local;  // the range's points, contiguous
-	std::vector<float> d2;
+	std::vector<float> d2, tx, ty, tz;
 	std::vector<uint8_t> assign;
-	std::vector<uint32_t> tmp;
+	std::vector<uint32_t> tidx;
 };
 
-/** One k-means split of the points idx[begin,end) in place: on return the
- * range is partitioned into contiguous groups, `bounds` holds their ends. */
-void kmeansSplit(const std::vector<Eigen::Vector3f>& pts,
-                 std::vector<uint32_t>& idx, size_t begin, size_t end, int k,
-                 int iterations, std::vector<size_t>& bounds, SplitScratch& S)
+/** Bounding box of a group. */
+struct Box
 {
-	const size_t n = end - begin;
-	k = static_cast<int>(std::min<size_t>(k, n));
-	S.local.resize(n);
-	for (size_t i = 0; i < n; i++) S.local[i] = pts[idx[begin + i]];
-	const auto& P = S.local;
-	// Farthest-point initialisation from the first point: deterministic and
-	// spreads centres along elongated structures (stems, branches).
-	Eigen::Vector3f centres[16];
-	int nc = 1;
-	centres[0] = P[0];
-	S.d2.assign(n, std::numeric_limits<float>::max());
-	while (nc < k)
+	Eigen::Vector3f lo, hi;
+	float diagonal2() const { return (hi - lo).squaredNorm(); }
+};
+
+/** Centres of one k-means split, and the assignment of its points. */
+struct Centres
+{
+	float x[16], y[16], z[16];
+	int k = 0;
+
+	/** Nearest centre of (x, y, z). */
+	uint8_t nearest(float px, float py, float pz) const
 	{
-		size_t best = 0;
-		float best_d = -1;
+		float best_d = (px - x[0]) * (px - x[0]) + (py - y[0]) * (py - y[0]) +
+		               (pz - z[0]) * (pz - z[0]);
+		uint8_t best = 0;
+		for (int c = 1; c < k; c++)
+		{
+			const float d = (px - x[c]) * (px - x[c]) +
+			                (py - y[c]) * (py - y[c]) +
+			                (pz - z[c]) * (pz - z[c]);
+			if (d < best_d) best_d = d, best = static_cast<uint8_t>(c);
+		}
+		return best;
+	}
+};
+
+/** k-means of the n points X, Y, Z: farthest-point initialisation from the
+ * first point (deterministic; spreads centres along elongated structures
+ * such as stems and branches), then Lloyd steps until the assignment no
+ * longer changes. `assign` receives the last assignment. */
+Centres lloyd(const float* X, const float* Y, const float* Z, size_t n, int k,
+              int iterations, float* d2, uint8_t* assign)
+{
+	Centres C;
+	k = static_cast<int>(std::min<size_t>(k, n));
+	C.x[0] = X[0], C.y[0] = Y[0], C.z[0] = Z[0];
+	C.k = 1;
+	std::fill(d2, d2 + n, std::numeric_limits<float>::max());
+	while (C.k < k)
+	{
+		const float qx = C.x[C.k - 1], qy = C.y[C.k - 1], qz = C.z[C.k - 1];
+		size_t far = 0;
+		float far_d = -1;
 		for (size_t i = 0; i < n; i++)
 		{
-			S.d2[i] = std::min(S.d2[i], (P[i] - centres[nc - 1]).squaredNorm());
-			if (S.d2[i] > best_d)
-			{
-				best_d = S.d2[i];
-				best = i;
-			}
+			const float dx = X[i] - qx, dy = Y[i] - qy, dz = Z[i] - qz;
+			const float d = std::min(d2[i], dx * dx + dy * dy + dz * dz);
+			d2[i] = d;
+			if (d > far_d) far_d = d, far = i;
 		}
-		if (best_d <= 0) break;  // all points identical
-		centres[nc++] = P[best];
+		if (far_d <= 0) break;  // all points identical
+		C.x[C.k] = X[far], C.y[C.k] = Y[far], C.z[C.k] = Z[far];
+		C.k++;
 	}
-	k = nc;
-	S.assign.assign(n, 0);
+	std::fill(assign, assign + n, 0);
 	for (int it = 0; it < iterations; it++)
 	{
 		bool changed = false;
-		Eigen::Vector3f sum[16];
-		int cnt[16] = {0};
-		for (int c = 0; c < k; c++) sum[c].setZero();
+		float sx[16] = {0}, sy[16] = {0}, sz[16] = {0};
+		uint32_t cnt[16] = {0};
 		for (size_t i = 0; i < n; i++)
 		{
-			int best = 0;
-			float best_d = (P[i] - centres[0]).squaredNorm();
-			for (int c = 1; c < k; c++)
-			{
-				const float d = (P[i] - centres[c]).squaredNorm();
-				if (d < best_d)
-				{
-					best_d = d;
-					best = c;
-				}
-			}
-			changed |= S.assign[i] != best;
-			S.assign[i] = static_cast<uint8_t>(best);
-			sum[best] += P[i];
+			const uint8_t best = C.nearest(X[i], Y[i], Z[i]);
+			changed |= assign[i] != best;
+			assign[i] = best;
+			sx[best] += X[i], sy[best] += Y[i], sz[best] += Z[i];
 			cnt[best]++;
 		}
 		if (!changed && it > 0) break;
-		for (int c = 0; c < k; c++)
-			if (cnt[c] > 0) centres[c] = sum[c] / static_cast<float>(cnt[c]);
+		for (int c = 0; c < C.k; c++)
+			if (cnt[c] > 0)
+			{
+				const float inv = 1.0f / static_cast<float>(cnt[c]);
+				C.x[c] = sx[c] * inv, C.y[c] = sy[c] * inv,
+				C.z[c] = sz[c] * inv;
+			}
 	}
-	// Stable partition by assignment (counting sort).
-	size_t start[17] = {0};
-	for (size_t i = 0; i < n; i++) start[S.assign[i] + 1]++;
-	for (int c = 0; c < k; c++) start[c + 1] += start[c];
-	S.tmp.assign(idx.begin() + begin, idx.begin() + end);
-	size_t pos[16];
-	for (int c = 0; c < k; c++) pos[c] = start[c];
-	for (size_t i = 0; i < n; i++) idx[begin + pos[S.assign[i]]++] = S.tmp[i];
-	bounds.clear();
-	for (int c = 0; c < k; c++)
-		if (start[c + 1] > start[c]) bounds.push_back(begin + start[c + 1]);
+	return C;
 }
 
-/** Squared diagonal of the bounding box of idx[begin, end). */
-float extentSquared(const std::vector<Eigen::Vector3f>& pts,
-                    const std::vector<uint32_t>& idx, size_t begin, size_t end)
+/** Larger ranges find their centres on an evenly strided sample of this many
+ * points, then assign every point once: the top splits of a scan are coarse
+ * cuts that a sample places as well, at a fraction of the distances. */
+constexpr size_t kSampleSize = 1024;
+
+/** One k-means split of slots [begin, end) in place: on return the range is
+ * partitioned into contiguous groups, `bounds` holds their ends and `boxes`
+ * their bounding boxes. */
+void kmeansSplit(Points& P, size_t begin, size_t end, int k, int iterations,
+                 std::vector<size_t>& bounds, std::vector<Box>& boxes,
+                 SplitScratch& S)
 {
-	Eigen::Vector3f lo = pts[idx[begin]], hi = lo;
-	for (size_t i = begin + 1; i < end; i++)
+	const size_t n = end - begin;
+	const float* X = P.x.data() + begin;
+	const float* Y = P.y.data() + begin;
+	const float* Z = P.z.data() + begin;
+	uint8_t* assign = S.assign.data();
+	Centres C;
+	if (n <= kSampleSize)
+		C = lloyd(X, Y, Z, n, k, iterations, S.d2.data(), assign);
+	else
 	{
-		lo = lo.cwiseMin(pts[idx[i]]);
-		hi = hi.cwiseMax(pts[idx[i]]);
+		float* sx = S.tx.data();
+		float* sy = S.ty.data();
+		float* sz = S.tz.data();
+		for (size_t j = 0; j < kSampleSize; j++)
+		{
+			const size_t i = j * n / kSampleSize;
+			sx[j] = X[i], sy[j] = Y[i], sz[j] = Z[i];
+		}
+		C = lloyd(sx, sy, sz, kSampleSize, k, iterations, S.d2.data(), assign);
+		for (size_t i = 0; i < n; i++) assign[i] = C.nearest(X[i], Y[i], Z[i]);
 	}
-	return (hi - lo).squaredNorm();
+	k = C.k;
+	// Stable partition by assignment (counting sort), with the boxes.
+	size_t start[17] = {0};
+	for (size_t i = 0; i < n; i++) start[assign[i] + 1]++;
+	for (int c = 0; c < k; c++) start[c + 1] += start[c];
+	std::copy(X, X + n, S.tx.data());
+	std::copy(Y, Y + n, S.ty.data());
+	std::copy(Z, Z + n, S.tz.data());
+	S.tidx.assign(P.idx.begin() + begin, P.idx.begin() + end);
+	size_t pos[16];
+	Box box[16];
+	for (int c = 0; c < k; c++)
+	{
+		pos[c] = begin + start[c];
+		box[c].lo.setConstant(std::numeric_limits<float>::max());
+		box[c].hi.setConstant(-std::numeric_limits<float>::max());
+	}
+	for (size_t i = 0; i < n; i++)
+	{
+		const int c = assign[i];
+		const size_t o = pos[c]++;
+		const Eigen::Vector3f q(S.tx[i], S.ty[i], S.tz[i]);
+		P.x[o] = q.x(), P.y[o] = q.y(), P.z[o] = q.z();
+		P.idx[o] = S.tidx[i];
+		box[c].lo = box[c].lo.cwiseMin(q);
+		box[c].hi = box[c].hi.cwiseMax(q);
+	}
+	bounds.clear();
+	boxes.clear();
+	for (int c = 0; c < k; c++)
+		if (start[c + 1] > start[c])
+		{
+			bounds.push_back(begin + start[c + 1]);
+			boxes.push_back(box[c]);
+		}
 }
 }  // namespace
 
@@ -153,45 +225,67 @@ ClusterLabels hierarchicalKMeans(const std::vector<Eigen::Vector3f>& pts,
 	out.cluster.assign(pts.size(), -1);
 	out.range_m.resize(pts.size());
 	out.cluster_size.assign(pts.size(), 0);
-	std::vector<uint32_t> idx;
-	idx.reserve(pts.size());
+	Points P;
+	P.idx.reserve(pts.size());
 	for (uint32_t i = 0; i < pts.size(); i++)
 	{
 		out.range_m[i] = pts[i].norm();
-		if (pts[i].allFinite()) idx.push_back(i);
+		if (pts[i].allFinite()) P.idx.push_back(i);
 	}
-	if (idx.empty()) return out;
+	if (P.idx.empty()) return out;
+	const auto& idx = P.idx;
+	const size_t N = idx.size();
+	P.x.resize(N), P.y.resize(N), P.z.resize(N);
+	Box all{pts[idx[0]], pts[idx[0]]};
+	for (size_t i = 0; i < N; i++)
+	{
+		const auto& q = pts[idx[i]];
+		P.x[i] = q.x(), P.y[i] = q.y(), P.z[i] = q.z();
+		all.lo = all.lo.cwiseMin(q);
+		all.hi = all.hi.cwiseMax(q);
+	}
+	SplitScratch scratch;
+	for (auto* v : {&scratch.d2, &scratch.tx, &scratch.ty, &scratch.tz})
+		v->resize(std::max(N, kSampleSize));
+	scratch.assign.resize(N);
 
-	// Depth-first recursion with an explicit stack of [begin, end) ranges.
-	std::vector<std::pair<size_t, size_t>> stack = {{0, idx.size()}};
+	// Depth-first recursion with an explicit stack of [begin, end) ranges
+	// and their bounding boxes.
+	struct Range
+	{
+		size_t b, e;
+		Box box;
+	};
+	std::vector<Range> stack = {{0, idx.size(), all}};
 	std::vector<std::pair<size_t, size_t>> leaves;
 	std::vector<size_t> bounds;
-	SplitScratch scratch;
+	std::vector<Box> boxes;
 	const float max_extent2 = static_cast<float>(opts.max_cluster_extent_m *
 	                                             opts.max_cluster_extent_m);
 	while (!stack.empty())
 	{
-		const auto [b, e] = stack.back();
+		const Range r = stack.back();
 		stack.pop_back();
+		const size_t b = r.b, e = r.e;
 		if (e - b <= static_cast<size_t>(opts.max_cluster_points) &&
 		    (opts.max_cluster_extent_m <= 0 || e - b < 2 ||
-		     extentSquared(pts, idx, b, e) <= max_extent2))
+		     r.box.diagonal2() <= max_extent2))
 		{
 			leaves.push_back({b, e});
 			continue;
 		}
-		kmeansSplit(pts, idx, b, e, opts.branching_factor,
-		            opts.kmeans_iterations, bounds, scratch);
+		kmeansSplit(P, b, e, opts.branching_factor, opts.kmeans_iterations,
+		            bounds, boxes, scratch);
 		if (bounds.size() <= 1)
 		{
 			leaves.push_back({b, e});  // cannot split (identical points)
 			continue;
 		}
 		size_t s = b;
-		for (size_t bend : bounds)
+		for (size_t g = 0; g < bounds.size(); g++)
 		{
-			stack.push_back({s, bend});
-			s = bend;
+			stack.push_back({s, bounds[g], boxes[g]});
+			s = bounds[g];
 		}
 	}
 
@@ -203,43 +297,89 @@ ClusterLabels hierarchicalKMeans(const std::vector<Eigen::Vector3f>& pts,
 	{
 		Eigen::Vector3f s = Eigen::Vector3f::Zero();
 		for (size_t i = leaves[l].first; i < leaves[l].second; i++)
-			s += pts[idx[i]];
+			s += Eigen::Vector3f(P.x[i], P.y[i], P.z[i]);
 		size[l] = static_cast<uint32_t>(leaves[l].second - leaves[l].first);
 		cen[l] = s / static_cast<float>(size[l]);
 	}
 	std::vector<int32_t> target(L);
 	std::iota(target.begin(), target.end(), 0);
-	// Big clusters hashed by centroid on a grid of the merge distance: the
-	// nearest one within it is in the 27 cells around.
+	// Big clusters hashed by centroid on a grid: the nearest one within the
+	// merge distance is in the 8 cells nearest the small one's centroid.
 	const float md = static_cast<float>(opts.max_merge_distance_m);
 	const uint32_t min_pts = static_cast<uint32_t>(opts.min_cluster_points);
 	if (md > 0)
 	{
-		auto cellKey = [&](const Eigen::Vector3f& p, int dx, int dy, int dz)
+		// Cells twice the merge distance wide: the ball of radius md around
+		// a centroid touches at most two cells per axis (8, not 27).
+		const float inv_cell = 0.5f / md;
+		auto cellOf = [&](const Eigen::Vector3f& p)
 		{
-			const int64_t x = static_cast<int64_t>(std::floor(p.x() / md)) + dx,
-			              y = static_cast<int64_t>(std::floor(p.y() / md)) + dy,
-			              z = static_cast<int64_t>(std::floor(p.z() / md)) + dz;
-			return (x * 73856093) ^ (y * 19349663) ^ (z * 83492791);
+			return Eigen::Vector3f(std::floor(p.x() * inv_cell),
+			                       std::floor(p.y() * inv_cell),
+			                       std::floor(p.z() * inv_cell));
 		};
-		std::unordered_map<int64_t, std::vector<int32_t>> grid;
+		auto cellKey = [](const Eigen::Vector3f& c, int dx, int dy, int dz)
+		{
+			constexpr int64_t m = (1 << 21) - 1;
+			return ((static_cast<int64_t>(c.x()) + dx) & m) << 42 |
+			       ((static_cast<int64_t>(c.y()) + dy) & m) << 21 |
+			       ((static_cast<int64_t>(c.z()) + dz) & m);
+		};
+		// (cell key, cluster) sorted, and an open-addressing table from a
+		// cell key to its run in that list: flat, no per-cell allocation.
+		std::vector<std::pair<int64_t, int32_t>> grid;
 		for (size_t l = 0; l < L; l++)
 			if (size[l] >= min_pts)
-				grid[cellKey(cen[l], 0, 0, 0)].push_back(
-				    static_cast<int32_t>(l));
+				grid.push_back({cellKey(cellOf(cen[l]), 0, 0, 0),
+				                static_cast<int32_t>(l)});
+		std::sort(grid.begin(), grid.end());
+		struct Slot
+		{
+			int64_t key;
+			uint32_t begin, end;  ///< end == 0: empty slot
+		};
+		int bits = 4;
+		while ((size_t(1) << bits) < 2 * grid.size()) bits++;
+		const size_t cap = size_t(1) << bits;
+		std::vector<Slot> table(cap, Slot{0, 0, 0});
+		// Fibonacci hashing: the top bits of the product mix every key bit.
+		auto slotOf = [&](int64_t key)
+		{
+			return static_cast<size_t>(
+			    (static_cast<uint64_t>(key) * 0x9E3779B97F4A7C15ull) >>
+			    (64 - bits));
+		};
+		for (size_t g = 0; g < grid.size();)
+		{
+			size_t e = g + 1;
+			while (e < grid.size() && grid[e].first == grid[g].first) e++;
+			size_t h = slotOf(grid[g].first);
+			while (table[h].end != 0) h = (h + 1) & (cap - 1);
+			table[h] = {grid[g].first, static_cast<uint32_t>(g),
+			            static_cast<uint32_t>(e)};
+			g = e;
+		}
 		for (size_t l = 0; l < L; l++)
 		{
 			if (size[l] >= min_pts) continue;
 			float best = md * md;
 			int32_t best_l = -1;
-			for (int dx = -1; dx <= 1; dx++)
-				for (int dy = -1; dy <= 1; dy++)
-					for (int dz = -1; dz <= 1; dz++)
+			const Eigen::Vector3f cell = cellOf(cen[l]);
+			// The neighbour cell on the side of the centroid, per axis.
+			const Eigen::Vector3f f = cen[l] * inv_cell - cell;
+			const int sx = f.x() < 0.5f ? -1 : 1, sy = f.y() < 0.5f ? -1 : 1,
+			          sz = f.z() < 0.5f ? -1 : 1;
+			for (int dx : {0, sx})
+				for (int dy : {0, sy})
+					for (int dz : {0, sz})
 					{
-						const auto it = grid.find(cellKey(cen[l], dx, dy, dz));
-						if (it == grid.end()) continue;
-						for (int32_t m : it->second)
+						const int64_t key = cellKey(cell, dx, dy, dz);
+						size_t h = slotOf(key);
+						while (table[h].end != 0 && table[h].key != key)
+							h = (h + 1) & (cap - 1);
+						for (uint32_t g = table[h].begin; g < table[h].end; g++)
 						{
+							const int32_t m = grid[g].second;
 							const float d = (cen[m] - cen[l]).squaredNorm();
 							if (d < best || (d == best && m < best_l))
 							{

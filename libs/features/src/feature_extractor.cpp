@@ -1,8 +1,9 @@
 #include <forest_slam/core/config.h>
 #include <forest_slam/features/feature_extractor.h>
 
-#include <Eigen/Eigenvalues>
+#include <Eigen/LU>
 #include <algorithm>
+#include <cmath>
 #include <numeric>
 
 namespace forest_slam::features
@@ -49,6 +50,30 @@ void FeatureOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
 	c.write(s, "edge_min_linearity", edge_min_linearity);
 }
 
+namespace
+{
+/** Eigenvalues (ascending) of a symmetric 3x3 matrix in closed form (the
+ * trigonometric solution of the characteristic cubic): a fraction of an
+ * iterative solver's cost, ample for a shape ratio. */
+Eigen::Vector3d eigenvalues3(const Eigen::Matrix3d& A)
+{
+	const double p1 = A(0, 1) * A(0, 1) + A(0, 2) * A(0, 2) + A(1, 2) * A(1, 2);
+	const double q = A.trace() / 3;
+	const double p2 = (A(0, 0) - q) * (A(0, 0) - q) +
+	                  (A(1, 1) - q) * (A(1, 1) - q) +
+	                  (A(2, 2) - q) * (A(2, 2) - q) + 2 * p1;
+	if (p2 <= 1e-30 * q * q || p2 == 0)
+		return Eigen::Vector3d(q, q, q);  // a multiple of the identity
+	const double p = std::sqrt(p2 / 6);
+	const Eigen::Matrix3d B = (A - q * Eigen::Matrix3d::Identity()) / p;
+	const double r = std::clamp(B.determinant() / 2, -1.0, 1.0);
+	const double phi = std::acos(r) / 3;
+	const double hi = q + 2 * p * std::cos(phi);
+	const double lo = q + 2 * p * std::cos(phi + 2 * M_PI / 3);
+	return Eigen::Vector3d(lo, 3 * q - hi - lo, hi);
+}
+}  // namespace
+
 Features extractFeatures(const std::vector<FeatureInputPoint>& pts,
                          const FeatureOptions& o)
 {
@@ -57,10 +82,18 @@ Features extractFeatures(const std::vector<FeatureInputPoint>& pts,
 	if (pts.empty()) return out;
 	int max_ring = 0;
 	for (const auto& p : pts) max_ring = std::max<int>(max_ring, p.ring);
-	// Ring lines ordered by firing column.
-	std::vector<std::vector<uint32_t>> rings(max_ring + 1);
-	for (uint32_t i = 0; i < pts.size(); i++)
-		if (pts[i].xyz.allFinite()) rings[pts[i].ring].push_back(i);
+	// Ring lines ordered by firing column: a counting sort by ring keeps
+	// the input order within a ring, which is firing order for an unpacked
+	// scan (checked below; sorted only if not).
+	std::vector<uint32_t> ring_start(max_ring + 2, 0), line_of(pts.size());
+	for (const auto& p : pts)
+		if (p.xyz.allFinite()) ring_start[p.ring + 1]++;
+	for (int r = 0; r <= max_ring; r++) ring_start[r + 1] += ring_start[r];
+	{
+		std::vector<uint32_t> pos(ring_start.begin(), ring_start.end() - 1);
+		for (uint32_t i = 0; i < pts.size(); i++)
+			if (pts[i].xyz.allFinite()) line_of[pos[pts[i].ring]++] = i;
+	}
 
 	// Shape of every cluster: edges only on linear ones (stems, branches);
 	// the scattered returns of a shrub or foliage look sharp to the
@@ -103,10 +136,7 @@ Features extractFeatures(const std::vector<FeatureInputPoint>& pts,
 				Eigen::Matrix3d C;
 				C << m[4], m[5], m[6], m[5], m[7], m[8], m[6], m[8], m[9];
 				C = C / m[0] - mu * mu.transpose();
-				const Eigen::Vector3d ev =
-				    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(
-				        C, Eigen::EigenvaluesOnly)
-				        .eigenvalues();  // ascending
+				const Eigen::Vector3d ev = eigenvalues3(C);  // ascending
 				const double l1 = std::sqrt(std::max(0.0, ev[2])),
 				             l2 = std::sqrt(std::max(0.0, ev[1]));
 				ok = l1 > 0 && (l1 - l2) / l1 >= o.edge_min_linearity;
@@ -117,91 +147,118 @@ Features extractFeatures(const std::vector<FeatureInputPoint>& pts,
 
 	const int w = o.half_window;
 	std::vector<uint8_t> taken(pts.size(), 0);
-	for (auto& line : rings)
+	// One ring at a time, gathered into contiguous arrays.
+	struct RingPoint
 	{
-		std::stable_sort(line.begin(), line.end(),
-		                 [&](uint32_t a, uint32_t b)
-		                 { return pts[a].column < pts[b].column; });
-		const int n = static_cast<int>(line.size());
+		Eigen::Vector3f xyz;
+		float range;
+		int32_t cluster;
+		int32_t column;
+		bool ground;
+	};
+	std::vector<RingPoint> R;
+	std::vector<int> edge_order, planar_order;
+	for (int ring = 0; ring <= max_ring; ring++)
+	{
+		uint32_t* line = line_of.data() + ring_start[ring];
+		const int n = static_cast<int>(ring_start[ring + 1] - ring_start[ring]);
+		auto byColumn = [&](uint32_t a, uint32_t b)
+		{ return pts[a].column < pts[b].column; };
+		if (!std::is_sorted(line, line + n, byColumn))
+			std::stable_sort(line, line + n, byColumn);
+		R.resize(n);
+		for (int k = 0; k < n; k++)
+		{
+			const auto& p = pts[line[k]];
+			R[k] = {p.xyz, p.xyz.norm(), p.cluster, p.column, p.ground};
+		}
 		// Smoothness of clustered points from same-cluster neighbours only.
 		for (int k = 0; k < n; k++)
 		{
-			const auto& pi = pts[line[k]];
+			const auto& pi = R[k];
 			if (pi.ground || pi.cluster < 0) continue;
 			// Symmetric window: as many same-cluster neighbours on each side
 			// (a one-sided window on a flat wall is not flat).
-			auto sideCount = [&](int dir)
-			{
-				int m = 0;
-				while (m < w)
-				{
-					const int j = k + dir * (m + 1);
-					if (j < 0 || j >= n || pts[line[j]].cluster != pi.cluster)
-						break;
-					m++;
-				}
-				return m;
-			};
-			const int m = std::min(sideCount(-1), sideCount(1));
+			int left = 0, right = 0;
+			while (left < w && k - left - 1 >= 0 &&
+			       R[k - left - 1].cluster == pi.cluster)
+				left++;
+			while (right < w && k + right + 1 < n &&
+			       R[k + right + 1].cluster == pi.cluster)
+				right++;
+			const int m = std::min(left, right);
 			float smooth = -1.f;
 			if (m >= std::max(2, w / 2))
 			{
 				Eigen::Vector3f diff = Eigen::Vector3f::Zero();
 				for (int d = 1; d <= m; d++)
-					diff += pts[line[k - d]].xyz + pts[line[k + d]].xyz -
-					        2 * pi.xyz;
-				smooth = diff.norm() / (2 * m * std::max(pi.xyz.norm(), 1e-3f));
+					diff += R[k - d].xyz + R[k + d].xyz - 2 * pi.xyz;
+				smooth = diff.norm() / (2 * m * std::max(pi.range, 1e-3f));
 			}
 			// Foreground silhouette: an adjacent firing hits another cluster
 			// (or the ground) clearly behind this point.
-			const float r = pi.xyz.norm();
 			for (int d : {-1, 1})
 			{
 				const int j = k + d;
 				if (j < 0 || j >= n) continue;
-				const auto& pj = pts[line[j]];
+				const auto& pj = R[j];
 				if (pj.column - pi.column != d) continue;  // a gap: no evidence
 				if (pj.cluster != pi.cluster &&
-				    pj.xyz.norm() - r > o.silhouette_gap_m)
+				    pj.range - pi.range > o.silhouette_gap_m)
 					smooth = std::max<float>(
 					    smooth, 1.0f + static_cast<float>(o.edge_threshold));
 			}
 			out.smoothness[line[k]] = smooth;
 		}
 		// Per sector: the sharpest edges and the flattest planar points,
-		// with neighbours of a chosen point suppressed (LOAM).
+		// with neighbours of a chosen point suppressed (LOAM). Only the
+		// candidates beyond each threshold are sorted (ties by position).
 		for (int sct = 0; sct < o.sectors_per_ring; sct++)
 		{
 			const int b = n * sct / o.sectors_per_ring;
 			const int e = n * (sct + 1) / o.sectors_per_ring;
-			std::vector<int> order;
+			edge_order.clear();
+			planar_order.clear();
 			for (int k = b; k < e; k++)
-				if (out.smoothness[line[k]] >= 0) order.push_back(k);
-			std::sort(
-			    order.begin(), order.end(),
-			    [&](int a, int c)
-			    { return out.smoothness[line[a]] > out.smoothness[line[c]]; });
+			{
+				const float sm = out.smoothness[line[k]];
+				if (sm > o.edge_threshold)
+					edge_order.push_back(k);
+				else if (sm >= 0 && sm < o.planar_threshold)
+					planar_order.push_back(k);
+			}
+			std::sort(edge_order.begin(), edge_order.end(),
+			          [&](int a, int c)
+			          {
+				          const float sa = out.smoothness[line[a]],
+				                      sc = out.smoothness[line[c]];
+				          return sa > sc || (sa == sc && a < c);
+			          });
+			std::sort(planar_order.begin(), planar_order.end(),
+			          [&](int a, int c)
+			          {
+				          const float sa = out.smoothness[line[a]],
+				                      sc = out.smoothness[line[c]];
+				          return sa < sc || (sa == sc && a < c);
+			          });
 			auto suppress = [&](int k)
 			{
 				for (int d = -w; d <= w; d++)
 					if (k + d >= 0 && k + d < n) taken[line[k + d]] = 1;
 			};
 			int ne = 0;
-			for (int k : order)
+			for (int k : edge_order)
 			{
 				if (ne >= o.max_edges_per_sector) break;
-				if (out.smoothness[line[k]] <= o.edge_threshold) break;
 				if (taken[line[k]] || !edgeAllowed(pts[line[k]])) continue;
 				out.edges.push_back(line[k]);
 				suppress(k);
 				ne++;
 			}
 			int np = 0;
-			for (auto it = order.rbegin(); it != order.rend(); ++it)
+			for (int k : planar_order)
 			{
-				const int k = *it;
 				if (np >= o.max_planar_per_sector) break;
-				if (out.smoothness[line[k]] >= o.planar_threshold) break;
 				if (taken[line[k]]) continue;
 				out.planar.push_back(line[k]);
 				suppress(k);
@@ -211,7 +268,7 @@ Features extractFeatures(const std::vector<FeatureInputPoint>& pts,
 		// Ground: decimated along the ring.
 		int g = 0;
 		for (int k = 0; k < n; k++)
-			if (pts[line[k]].ground && (g++ % o.ground_decimation) == 0)
+			if (R[k].ground && (g++ % o.ground_decimation) == 0)
 				out.planar.push_back(line[k]);
 	}
 	return out;

@@ -23,6 +23,12 @@ struct GroundOptions : public mrpt::config::CLoadableOptions
 	double radius_m = 40.0;  ///< points farther from the sensor are not used
 	/** A point is ground if within this distance of its node's plane. */
 	double ground_threshold_m = 0.15;
+	/** Along a beam the ground band (ground_threshold_m thick) is at most
+	 * this long: at grazing incidence the threshold shrinks to
+	 * max_band_length_m * tan(incidence). A grazing beam crosses low
+	 * foliage over metres inside a full band, while its ground returns lie
+	 * on the node plane (one ring measured it) [m] (0: off). */
+	double max_band_length_m = 0.0;
 	/** Candidate ground points of a node: within this band above its
 	 * lowest point (ground under grass/litter is not a perfect plane). */
 	double lowest_band_m = 0.25;
@@ -74,13 +80,44 @@ struct NodeKey
 	int32_t i = 0, j = 0;
 	bool operator==(const NodeKey& o) const { return i == o.i && j == o.j; }
 };
-struct NodeKeyHash
+
+/** The lattice nodes, in tiles of kTile x kTile created where the sensor
+ * went: a scan reaches its nodes through a few tile look-ups instead of one
+ * hash look-up per node. */
+class NodeStore
 {
-	size_t operator()(const NodeKey& k) const
+   public:
+	static constexpr int kTileBits = 5, kTile = 1 << kTileBits;
+	using Tile = std::vector<LatticeNode>;  ///< kTile * kTile, row-major
+
+	/** The node, or nullptr if its tile was never created. */
+	const LatticeNode* find(const NodeKey& k) const;
+	LatticeNode* find(const NodeKey& k);
+	/** The tile holding node k (created if missing), and k's slot in it. */
+	Tile& tile(const NodeKey& k, size_t& slot);
+	LatticeNode& at(const NodeKey& k)
 	{
-		return (static_cast<size_t>(static_cast<uint32_t>(k.i)) << 32) ^
-		       static_cast<uint32_t>(k.j);
+		size_t slot;
+		return tile(k, slot)[slot];
 	}
+	/** True until a node has been measured. */
+	bool empty() const { return !measured_; }
+	void markMeasured() { measured_ = true; }
+	void clear()
+	{
+		tiles_.clear();
+		measured_ = false;
+	}
+
+   private:
+	static uint64_t tileKey(const NodeKey& k)
+	{
+		return (static_cast<uint64_t>(static_cast<uint32_t>(k.i >> kTileBits))
+		        << 32) |
+		       static_cast<uint32_t>(k.j >> kTileBits);
+	}
+	std::unordered_map<uint64_t, Tile> tiles_;
+	bool measured_ = false;
 };
 
 class GroundLattice
@@ -105,17 +142,14 @@ class GroundLattice
 	 * nodes around it; false if none is known. */
 	bool heightAt(double x, double y, double& z) const;
 
-	const std::unordered_map<NodeKey, LatticeNode, NodeKeyHash>& nodes() const
-	{
-		return nodes_;
-	}
+	const NodeStore& nodes() const { return nodes_; }
 	const GroundOptions& options() const { return opts_; }
 	NodeKey keyOf(double x, double y) const;
 	void clear() { nodes_.clear(); }
 
    private:
 	GroundOptions opts_;
-	std::unordered_map<NodeKey, LatticeNode, NodeKeyHash> nodes_;
+	NodeStore nodes_;
 	int half_ = 0;  ///< window half width [nodes] around the sensor's node
 	std::vector<NodeKey> order_;  ///< window offsets, nearest first
 	struct Scratch;               ///< per-scan buffers, reused
