@@ -6,8 +6,9 @@
 //   ground precision >= 98 %, recall >= 97 %; clusters mixing two GT trees
 //   <= 5 %; edges on stems/branches >= 85 %.
 // Mixing and edges are asserted with a small margin. Ground precision and
-// recall are not both met (97.5-98 % / 96-96.5 % here; low shrub foliage
-// within the ground threshold, see doc/frontend.md): they are asserted at
+// recall are met on the full scenarios but not both on these short runs
+// (98.1-98.4 % / 95.1-95.6 % here: the tiny loop and the small lap see
+// their ground more from afar, see doc/frontend.md): they are asserted at
 // the level reached so that a regression fails.
 #include <forest_slam/core/config.h>
 #include <forest_slam/sim/options.h>
@@ -95,8 +96,8 @@ void expectTargets(const frontend_eval::FrontEndScore& s)
 {
 	ASSERT_GT(s.scans, 200u);
 	ASSERT_GT(s.tp, 1000000u);
-	EXPECT_GE(s.groundPrecision(), 0.97);  // target 0.98: not met
-	EXPECT_GE(s.groundRecall(), 0.95);     // target 0.97: not met here
+	EXPECT_GE(s.groundPrecision(), 0.978);  // target 0.98
+	EXPECT_GE(s.groundRecall(), 0.945);     // target 0.97: not met here
 	EXPECT_GE(s.groundPrecision() + s.groundRecall(), 1.93);
 	ASSERT_GT(s.tree_clusters, 10000u);
 	EXPECT_LE(s.mixingRate(), 0.05);

@@ -10,12 +10,15 @@ using namespace forest_slam;
 namespace
 {
 // Curved, sloped terrain: ~8.5 deg along x plus undulation along y.
-double terrain(double x, double y) { return 0.15 * x + 0.5 * std::sin(y / 5.0); }
+double terrain(double x, double y)
+{
+	return 0.15 * x + 0.5 * std::sin(y / 5.0);
+}
 
 struct Scene
 {
 	std::vector<Eigen::Vector3f> pts;
-	std::vector<uint8_t> truth;	 // 1 ground
+	std::vector<uint8_t> truth;  // 1 ground
 	void add(double x, double y, double z, bool ground)
 	{
 		pts.emplace_back(x, y, z);
@@ -26,21 +29,25 @@ struct Scene
 /** Ground with 2 cm noise, stems, low shrubs that hide the ground under
  * them completely, and a wall. `hide_ground_in` removes ground points in a
  * disc (e.g. occluded this scan). */
-Scene makeScene(uint32_t seed, double hide_x = 1e9, double hide_y = 1e9, double hide_r = 0)
+Scene makeScene(uint32_t seed, double hide_x = 1e9, double hide_y = 1e9,
+                double hide_r = 0)
 {
 	std::mt19937 rng(seed);
 	std::uniform_real_distribution<double> U(-30, 30);
 	std::normal_distribution<double> N(0, 0.02);
 	Scene s;
 	const std::vector<Eigen::Vector2d> shrubs = {{8, 5}, {-10, -6}, {15, -12}};
-	const std::vector<Eigen::Vector2d> stems = {{5, -3}, {-7, 9}, {12, 12}, {-15, -15}};
+	const std::vector<Eigen::Vector2d> stems = {
+	    {5, -3}, {-7, 9}, {12, 12}, {-15, -15}};
 	for (int k = 0; k < 40000; k++)
 	{
 		const double x = U(rng), y = U(rng);
-		if (std::hypot(x, y) < 4) continue;	 // blind zone under the sensor
+		if (std::hypot(x, y) < 4) continue;  // blind zone under the sensor
 		bool hidden = std::hypot(x - hide_x, y - hide_y) < hide_r;
-		for (const auto& c : shrubs) hidden |= std::hypot(x - c.x(), y - c.y()) < 1.5;
-		for (const auto& c : stems) hidden |= std::hypot(x - c.x(), y - c.y()) < 0.25;
+		for (const auto& c : shrubs)
+			hidden |= std::hypot(x - c.x(), y - c.y()) < 1.5;
+		for (const auto& c : stems)
+			hidden |= std::hypot(x - c.x(), y - c.y()) < 0.25;
 		if (!hidden) s.add(x, y, terrain(x, y) + N(rng), true);
 	}
 	std::uniform_real_distribution<double> A(0, 2 * M_PI), H(0, 1);
@@ -48,17 +55,19 @@ Scene makeScene(uint32_t seed, double hide_x = 1e9, double hide_y = 1e9, double 
 		for (int k = 0; k < 1500; k++)
 		{
 			const double a = A(rng), r = 1.5 * std::sqrt(H(rng));
-			const double x = c.x() + r * std::cos(a), y = c.y() + r * std::sin(a);
+			const double x = c.x() + r * std::cos(a),
+			             y = c.y() + r * std::sin(a);
 			s.add(x, y, terrain(x, y) + 0.3 + 0.7 * H(rng), false);
 		}
-	for (const auto& c : stems)	 // stem base up to 8 m
+	for (const auto& c : stems)  // stem base up to 8 m
 		for (int k = 0; k < 2000; k++)
 		{
 			const double a = A(rng);
-			const double x = c.x() + 0.2 * std::cos(a), y = c.y() + 0.2 * std::sin(a);
+			const double x = c.x() + 0.2 * std::cos(a),
+			             y = c.y() + 0.2 * std::sin(a);
 			s.add(x, y, terrain(c.x(), c.y()) + 8 * H(rng) + 0.02, false);
 		}
-	for (int k = 0; k < 3000; k++)	// a wall (building) from 0.05 m up
+	for (int k = 0; k < 3000; k++)  // a wall (building) from 0.05 m up
 	{
 		const double y = 20 + 6 * H(rng), x = -20;
 		s.add(x, y, terrain(x, y) + 0.05 + 3 * H(rng), false);
@@ -95,7 +104,8 @@ TEST(GroundLattice, LabelsCurvedSlopedTerrainWithShrubsAndStems)
 	// are (within the threshold); the bulk of every stem is not.
 	size_t stem_ground = 0, stem_total = 0;
 	for (size_t i = 0; i < s.pts.size(); i++)
-		if (!s.truth[i] && s.pts[i].z() - terrain(s.pts[i].x(), s.pts[i].y()) > 0.5)
+		if (!s.truth[i] &&
+		    s.pts[i].z() - terrain(s.pts[i].x(), s.pts[i].y()) > 0.5)
 		{
 			stem_total++;
 			stem_ground += lab[i];
@@ -163,6 +173,59 @@ TEST(GroundLattice, TemporalPriorCoversGroundHiddenThisScan)
 	EXPECT_GT(wrong_fresh, wrong) << "the prior is what saves this case";
 }
 
+TEST(GroundLattice, GrazingBandDropsFarLowFoliageOnly)
+{
+	// Flat ground seen from 1.5 m, and two patches of low foliage 8 cm above
+	// it among the ground returns: one at 30 m (grazing beams), one at 8 m.
+	std::mt19937 rng(5);
+	std::uniform_real_distribution<double> A(0, 2 * M_PI), H(0, 1);
+	std::normal_distribution<double> N(0, 0.005);
+	Scene s;
+	std::vector<int> patch;  // 0 none, 1 near, 2 far (foliage points)
+	for (int k = 0; k < 40000; k++)
+	{
+		const double a = A(rng), r = std::sqrt(9 + (38 * 38 - 9) * H(rng));
+		s.add(r * std::cos(a), r * std::sin(a), N(rng), true);
+		patch.push_back(0);
+	}
+	for (int which : {1, 2})
+		for (int k = 0; k < 60; k++)
+		{
+			const double a = A(rng), r = 2 * std::sqrt(H(rng));
+			const double cx = which == 1 ? 8 : 30;
+			s.add(cx + r * std::cos(a), r * std::sin(a), 0.08 + N(rng), false);
+			patch.push_back(which);
+		}
+	auto foliageAsGround = [&](const std::vector<uint8_t>& lab, int which)
+	{
+		size_t n = 0, g = 0;
+		for (size_t i = 0; i < lab.size(); i++)
+			if (patch[i] == which) n++, g += lab[i];
+		return static_cast<double>(g) / n;
+	};
+	auto farRecall = [&](const std::vector<uint8_t>& lab)
+	{
+		size_t n = 0, g = 0;
+		for (size_t i = 0; i < lab.size(); i++)
+			if (s.truth[i] && s.pts[i].head<2>().norm() > 25) n++, g += lab[i];
+		return static_cast<double>(g) / n;
+	};
+	ground::GroundOptions full;  // max_band_length_m = 0: the full band
+	const auto lab_full =
+	    ground::GroundLattice(full).labelScan(s.pts, {0, 0, 1.5});
+	ground::GroundOptions band;
+	band.max_band_length_m = 0.6;  // 3 cm thick at 30 m, 11 cm at 8 m
+	const auto lab_band =
+	    ground::GroundLattice(band).labelScan(s.pts, {0, 0, 1.5});
+	EXPECT_GT(foliageAsGround(lab_full, 2), 0.9);
+	// (Not all: the foliage also lifts the node planes a little.)
+	EXPECT_LT(foliageAsGround(lab_band, 2), 0.3);
+	// Steep beams keep the full threshold: the near patch stays ground (no
+	// way to tell it from a bump there), and the far ground stays ground.
+	EXPECT_GT(foliageAsGround(lab_band, 1), 0.9);
+	EXPECT_GT(farRecall(lab_band), 0.97);
+}
+
 TEST(GroundLattice, IgnoresNaNsAndFarPoints)
 {
 	ground::GroundLattice g;
@@ -173,7 +236,11 @@ TEST(GroundLattice, IgnoresNaNsAndFarPoints)
 
 TEST(GroundLattice, OptionsAreValidated)
 {
-	auto cfg = core::TrackedConfig::fromText("[ground]\nnode_spacing_m = 0\n", "g.ini");
+	auto cfg = core::TrackedConfig::fromText("[ground]\nnode_spacing_m = 0\n",
+	                                         "g.ini");
 	ground::GroundOptions o;
 	EXPECT_THROW(o.loadFromConfigFile(cfg, "ground"), core::ConfigError);
+	auto neg = core::TrackedConfig::fromText(
+	    "[ground]\nmax_band_length_m = -1\n", "g.ini");
+	EXPECT_THROW(o.loadFromConfigFile(neg, "ground"), core::ConfigError);
 }

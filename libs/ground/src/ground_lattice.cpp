@@ -633,6 +633,22 @@ std::vector<uint8_t> GroundLattice::labelScan(
 	// higher, within foot_radius_m horizontally) is the foot of a stem, wall
 	// or shrub, not ground: seen from the side, the rings above hit the same
 	// vertical surface at the same place, while above ground there is air.
+	// Grazing beams: the band of a point at horizontal distance d is at most
+	// max_band_length_m long along its beam, i.e. at most
+	// max_band_length_m * tan(incidence) thick, the incidence on a plane
+	// through the ground under the sensor being atan(sensor height / d).
+	// (The sensor's own height, not the point's depth below it: on a
+	// uniform slope that is the exact incidence, and node slopes far out,
+	// fitted to one ring, are too noisy to tilt the beam by.)
+	// Ground under the sensor: the lattice's, else this scan's seed plane.
+	double band_k = 0;
+	if (opts_.max_band_length_m > 0)
+	{
+		double z_under = NAN;
+		if (!heightAt(sensor.x(), sensor.y(), z_under) && seed_ok)
+			z_under = seed[0];
+		if (zs > z_under) band_k = opts_.max_band_length_m * (zs - z_under);
+	}
 	const double fc = opts_.foot_radius_m;
 	const int L = fc > 0 ? static_cast<int>(std::ceil(s / fc)) + 2 : 0;
 	const double inv_fc = fc > 0 ? 1.0 / fc : 0.0;
@@ -668,13 +684,11 @@ std::vector<uint8_t> GroundLattice::labelScan(
 			                             : S.pred[c];
 			const double dz = p.z() - ground_z;
 			double threshold = opts_.ground_threshold_m;
-			if (opts_.max_band_length_m > 0)
+			if (band_k > 0)
 			{
 				const double bx = p.x() - sensor.x(), by = p.y() - sensor.y();
-				const double depth = zs - ground_z;
-				threshold = std::min(
-				    threshold, opts_.max_band_length_m * std::max(0.0, depth) /
-				                   std::sqrt(bx * bx + by * by));
+				threshold =
+				    std::min(threshold, band_k / std::sqrt(bx * bx + by * by));
 			}
 			uint8_t lab = dz < threshold;
 			// Below the plane a point is ground even under foliage (ground

@@ -25,9 +25,11 @@ struct GroundOptions : public mrpt::config::CLoadableOptions
 	double ground_threshold_m = 0.15;
 	/** Along a beam the ground band (ground_threshold_m thick) is at most
 	 * this long: at grazing incidence the threshold shrinks to
-	 * max_band_length_m * tan(incidence). A grazing beam crosses low
-	 * foliage over metres inside a full band, while its ground returns lie
-	 * on the node plane (one ring measured it) [m] (0: off). */
+	 * max_band_length_m * tan(incidence), the incidence taken as
+	 * atan(sensor height above the ground under it / horizontal distance).
+	 * A grazing beam crosses low foliage over metres inside a full band,
+	 * while its ground returns lie on the node plane (one ring measured it)
+	 * [m] (0: off). */
 	double max_band_length_m = 0.0;
 	/** Candidate ground points of a node: within this band above its
 	 * lowest point (ground under grass/litter is not a perfect plane). */
