@@ -32,7 +32,7 @@ MemorySample sampleMemory(const MappingPipeline& p)
 	if (const auto* o = p.odometry())
 	{
 		s.local_map_mb = toMb(o->localMap().memoryBytes());
-		s.ground_mb = toMb(core::hashMapBytes(o->groundLattice().nodes()));
+		s.ground_mb = toMb(o->groundLattice().nodes().memoryBytes());
 	}
 	if (const auto* b = p.backEnd()) s.back_end_mb = toMb(b->cloudBytes());
 	s.trajectory_mb =

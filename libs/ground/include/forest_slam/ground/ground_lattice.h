@@ -102,6 +102,14 @@ class NodeStore
 		size_t slot;
 		return tile(k, slot)[slot];
 	}
+	/** Heap bytes held (tiles and the table over them). */
+	size_t memoryBytes() const
+	{
+		return tiles_.bucket_count() * sizeof(void*) +
+		       tiles_.size() *
+		           (2 * sizeof(void*) + sizeof(uint64_t) + sizeof(Tile) +
+		            sizeof(LatticeNode) * kTile * kTile);
+	}
 	/** True until a node has been measured. */
 	bool empty() const { return !measured_; }
 	void markMeasured() { measured_ = true; }
