@@ -220,37 +220,71 @@ void LocalMap::knn(const PointGrid& g, const Eigen::Vector3f& x, int k,
 {
 	best.clear();
 	const double s = o_.cell_m;
-	const Eigen::Vector3d xd = x.cast<double>();
-	// Only the cells the sphere of radius `extent` touches: with cells at
-	// least twice the extent that is at most 8 (2 per axis).
-	int64_t lo[3], hi[3];
+	// Only the cells the sphere of radius `extent` touches (with cells at
+	// least twice the extent: at most 8), nearest box first; a cell farther
+	// than the current k-th neighbour is skipped, so most queries read only
+	// their own cell. Cell indices as addPoint() computes them (double).
+	int64_t c0[3];
+	float lo_gap[3], hi_gap[3];  // distance from x to its cell's faces
 	for (int a = 0; a < 3; a++)
 	{
-		lo[a] = static_cast<int64_t>(std::floor((xd[a] - extent) / s));
-		hi[a] = static_cast<int64_t>(std::floor((xd[a] + extent) / s));
+		const double f = std::floor(static_cast<double>(x[a]) / s);
+		c0[a] = static_cast<int64_t>(f);
+		lo_gap[a] = static_cast<float>(x[a] - f * s);
+		hi_gap[a] = static_cast<float>((f + 1) * s - x[a]);
 	}
-	float worst = static_cast<float>(extent * extent);
-	for (int64_t i = lo[0]; i <= hi[0]; i++)
-		for (int64_t j = lo[1]; j <= hi[1]; j++)
-			for (int64_t m = lo[2]; m <= hi[2]; m++)
+	const float e = static_cast<float>(extent);
+	const int reach = static_cast<int>(std::ceil(extent / s));
+	struct Cell
+	{
+		float d2;
+		int di[3];
+	};
+	thread_local std::vector<Cell> cells;
+	cells.clear();
+	for (int i = -reach; i <= reach; i++)
+		for (int j = -reach; j <= reach; j++)
+			for (int m = -reach; m <= reach; m++)
 			{
-				const auto it = g.find(key(i, j, m));
-				if (it == g.end()) continue;
-				for (const auto& p : it->second.pts)
+				const int d[3] = {i, j, m};
+				float d2 = 0;
+				for (int a = 0; a < 3; a++)
 				{
-					const float d2 = (p - x).squaredNorm();
-					if (d2 > worst) continue;
-					if (static_cast<int>(best.size()) < k)
-						best.emplace_back(d2, p);
-					else
-						best.back() = {d2, p};
-					for (size_t n = best.size() - 1;
-					     n > 0 && best[n].first < best[n - 1].first; n--)
-						std::swap(best[n], best[n - 1]);
-					if (static_cast<int>(best.size()) == k)
-						worst = best.back().first;
+					// Gap from x to the box of the cell d[a] steps away.
+					const float gap =
+					    d[a] < 0   ? lo_gap[a] + (-d[a] - 1) * float(s)
+					    : d[a] > 0 ? hi_gap[a] + (d[a] - 1) * float(s)
+					               : 0.f;
+					d2 += gap * gap;
 				}
+				if (d2 > e * e) continue;
+				Cell c{d2, {i, j, m}};
+				cells.push_back(c);
+				for (size_t n = cells.size() - 1;
+				     n > 0 && cells[n - 1].d2 > c.d2; n--)
+					std::swap(cells[n], cells[n - 1]);
 			}
+	float worst = e * e;
+	for (const Cell& c : cells)
+	{
+		if (c.d2 > worst) break;
+		const auto it =
+		    g.find(key(c0[0] + c.di[0], c0[1] + c.di[1], c0[2] + c.di[2]));
+		if (it == g.end()) continue;
+		for (const auto& p : it->second.pts)
+		{
+			const float d2 = (p - x).squaredNorm();
+			if (d2 > worst) continue;
+			if (static_cast<int>(best.size()) < k)
+				best.emplace_back(d2, p);
+			else
+				best.back() = {d2, p};
+			for (size_t n = best.size() - 1;
+			     n > 0 && best[n].first < best[n - 1].first; n--)
+				std::swap(best[n], best[n - 1]);
+			if (static_cast<int>(best.size()) == k) worst = best.back().first;
+		}
+	}
 }
 
 bool LocalMap::matchPlane(const Eigen::Vector3f& x, double gate,
