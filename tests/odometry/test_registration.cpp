@@ -1,5 +1,6 @@
 #include <forest_slam/io/las.h>
 #include <forest_slam/map/voxel_cloud.h>
+#include <forest_slam/odometry/degeneracy.h>
 #include <forest_slam/odometry/feature_registration.h>
 #include <gtest/gtest.h>
 
@@ -115,6 +116,83 @@ TEST(Registration, DegenerateCorridorShowsInTheInformation)
 	    tgt, {}, planar, Eigen::Isometry3d::Identity(), {});
 	EXPECT_LT(r.information_eigenvalues[0],
 	          1e-3 * r.information_eigenvalues[5]);
+}
+
+TEST(Registration, DegeneracyComparesRotationAtTheRangeOfThePoints)
+{
+	// A fully constrained scene at 20-40 m: ground, two walls, poles. In
+	// radians the rotations' information is the translations' times the
+	// squared range, so the raw eigenvalues call the translations weak; in
+	// metres at the points' RMS range they are not.
+	std::vector<Eigen::Vector3f> planar, edges;
+	std::mt19937 rng(3);
+	std::uniform_real_distribution<float> U(-40, 40);
+	for (int i = 0; i < 3000; i++)
+	{
+		planar.emplace_back(U(rng), U(rng), -1.5f);
+		planar.emplace_back(40.f, U(rng), U(rng) * 0.1f + 2.5f);
+		planar.emplace_back(U(rng), -40.f, U(rng) * 0.1f + 2.5f);
+	}
+	for (int i = 0; i < 300; i++)
+		for (const auto& c : {Eigen::Vector2f(20, 10), Eigen::Vector2f(-25, 5),
+		                      Eigen::Vector2f(15, -30)})
+			edges.emplace_back(c.x(), c.y(), -1.5f + 0.02f * i);
+	odometry::FeatureTarget tgt;
+	tgt.build(edges, planar);
+	odometry::RegistrationOptions ro;
+	ro.max_neighbourhood_m = 3.0;  // the synthetic points are sparse
+	const auto r = odometry::registerFeatures(
+	    tgt, edges, planar, Eigen::Isometry3d::Identity(), ro);
+	EXPECT_GT(r.lever_arm_m, 20.0);
+	EXPECT_LT(r.lever_arm_m, 60.0);
+	const Eigen::Matrix<double, 6, 1> raw = r.information_eigenvalues;
+	const Eigen::Matrix<double, 6, 1> scaled =
+	    Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>>(
+	        odometry::scaledInformation(r.information, r.lever_arm_m))
+	        .eigenvalues();
+	std::printf(
+	    "lever arm %.1f m, smallest/largest eigenvalue raw %.4f, "
+	    "scaled %.4f\n",
+	    r.lever_arm_m, raw[0] / raw[5], scaled[0] / scaled[5]);
+	EXPECT_LT(raw[0], 0.01 * raw[5]);
+	EXPECT_GT(scaled[0], 0.035 * scaled[5]);
+	// Nothing is held on the prediction: the estimate comes back unchanged.
+	Eigen::Isometry3d predicted = Eigen::Isometry3d::Identity();
+	predicted.translation() = Eigen::Vector3d(0.1, -0.1, 0.05);
+	int weak = -1;
+	const Eigen::Isometry3d kept = odometry::remapDegenerate(
+	    predicted, r.T, r.information, r.lever_arm_m, 0.035, &weak);
+	EXPECT_EQ(weak, 0);
+	EXPECT_LT((kept.translation() - r.T.translation()).norm(), 1e-12);
+}
+
+TEST(Registration, GroundOnlyHoldsXYAndYawOnThePrediction)
+{
+	// A flat ground plane seen from 1.5 m: z, roll and pitch are measured,
+	// x, y and yaw are not; remapping keeps the prediction there.
+	std::vector<Eigen::Vector3f> planar;
+	std::mt19937 rng(4);
+	std::uniform_real_distribution<float> U(-20, 20);
+	for (int i = 0; i < 4000; i++) planar.emplace_back(U(rng), U(rng), -1.5f);
+	odometry::FeatureTarget tgt;
+	tgt.build({}, planar);
+	const auto r = odometry::registerFeatures(
+	    tgt, {}, planar, Eigen::Isometry3d::Identity(), {});
+	Eigen::Isometry3d predicted = Eigen::Isometry3d::Identity();
+	predicted.translation() = Eigen::Vector3d(0.3, -0.2, 0.04);
+	predicted.linear() =
+	    Eigen::AngleAxisd(0.02, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+	int weak = -1;
+	const Eigen::Isometry3d out = odometry::remapDegenerate(
+	    predicted, r.T, r.information, r.lever_arm_m, 0.1, &weak);
+	EXPECT_EQ(weak, 3);
+	// x, y, yaw from the prediction; z (and level) from the ground.
+	EXPECT_NEAR(out.translation().x(), 0.3, 1e-6);
+	EXPECT_NEAR(out.translation().y(), -0.2, 1e-6);
+	EXPECT_NEAR(out.translation().z(), r.T.translation().z(), 1e-6);
+	EXPECT_NEAR(std::abs(out.translation().z()), 0.0, 1e-3);
+	const Eigen::Vector3d ypr = out.linear().eulerAngles(2, 1, 0);
+	EXPECT_NEAR(ypr[0], 0.02, 1e-6);
 }
 
 TEST(Registration, RealScanPairMatchesReference)

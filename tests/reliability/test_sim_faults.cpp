@@ -245,11 +245,15 @@ TEST_F(SimFaults, OpenFieldIsDegenerateAndBridged)
 	          base.summary["scans_degenerate"].asUInt() + 15u);
 	EXPECT_EQ(s["scans_mapped"].asUInt(),
 	          base.summary["scans_mapped"].asUInt());
-	// No divergence: the motion model carries the pose through the 3 s
-	// (about 3.3 m walked); without holding the weak directions on the
-	// prediction the ATE was 0.83 m. Measured 0.25 m (fault-free 0.03 m):
-	// yaw drifts while degenerate, see doc/reliability.md.
-	EXPECT_LT(f.ate_m, 0.35) << "fault-free ATE " << base.ate_m << " m";
+	// The motion model carries the pose through the 3 s (about 3.3 m
+	// walked): without holding the weak directions on the prediction the
+	// ATE was 0.83 m; measured 0.041 m (fault-free 0.032 m).
+	EXPECT_LE(f.ate_m, 2 * base.ate_m)
+	    << "fault-free ATE " << base.ate_m << " m";
+	// The forest itself is never degenerate (the raw, unscaled information
+	// flagged a third of the forest scans and held their translation on the
+	// prediction, doc/reliability.md).
+	EXPECT_LE(base.summary["scans_degenerate"].asUInt(), 2u);
 	std::printf(
 	    "ATE: fault-free %.4f m, open field %.4f m, %u degenerate "
 	    "scans (fault-free %u)\n",

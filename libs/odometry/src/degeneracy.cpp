@@ -7,15 +7,27 @@
 
 namespace forest_slam::odometry
 {
+Eigen::Matrix<double, 6, 6> scaledInformation(
+    const Eigen::Matrix<double, 6, 6>& information, double lever_arm_m)
+{
+	// Parameters [L w, t]: info' = S^-1 info S^-1, S = diag(L, L, L, 1, 1, 1).
+	const double L = lever_arm_m > 0 ? lever_arm_m : 1.0;
+	Eigen::Matrix<double, 6, 1> s;
+	s << 1 / L, 1 / L, 1 / L, 1, 1, 1;
+	return s.asDiagonal() * information * s.asDiagonal();
+}
+
 Eigen::Isometry3d remapDegenerate(
     const Eigen::Isometry3d& predicted, const Eigen::Isometry3d& estimate,
-    const Eigen::Matrix<double, 6, 6>& information, double ratio,
-    int* weak_directions)
+    const Eigen::Matrix<double, 6, 6>& information, double lever_arm_m,
+    double ratio, int* weak_directions)
 {
 	using Mat6 = Eigen::Matrix<double, 6, 6>;
 	using Vec6 = Eigen::Matrix<double, 6, 1>;
 	if (weak_directions) *weak_directions = 0;
-	const Eigen::SelfAdjointEigenSolver<Mat6> es(information);
+	const double L = lever_arm_m > 0 ? lever_arm_m : 1.0;
+	const Eigen::SelfAdjointEigenSolver<Mat6> es(
+	    scaledInformation(information, L));
 	const Vec6& ev = es.eigenvalues();  // ascending
 	if (!(ev[5] > 0)) return estimate;
 	Mat6 keep = Mat6::Zero();
@@ -35,9 +47,10 @@ Eigen::Isometry3d remapDegenerate(
 	Vec6 d;
 	const Eigen::AngleAxisd aa(estimate.linear() *
 	                           predicted.linear().transpose());
-	d.head<3>() = aa.angle() * aa.axis();
+	d.head<3>() = L * aa.angle() * aa.axis();
 	d.tail<3>() = estimate.translation() - predicted.translation();
-	const Vec6 kept = keep * d;
+	Vec6 kept = keep * d;
+	kept.head<3>() /= L;
 	Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
 	const double angle = kept.head<3>().norm();
 	const Eigen::Matrix3d dR =

@@ -325,6 +325,9 @@ RegistrationResult registerFeatures(
 			}
 		res.edge_matches = ne;
 		res.planar_matches = np;
+		double r2 = 0;
+		for (const auto& r : rows) r2 += r.p.squaredNorm();
+		res.lever_arm_m = std::sqrt(r2 / std::max<size_t>(1, rows.size()));
 		if (ne + np < 6) break;  // not enough constraints: keep the guess
 
 		const Problem prob{rows, o, priors};

@@ -3,6 +3,7 @@
 #include <forest_slam/odometry/degeneracy.h>
 #include <forest_slam/odometry/lidar_odometry.h>
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <chrono>
 #include <unordered_map>
@@ -269,7 +270,10 @@ OdometryStep LidarOdometry::processScan(const core::ScanPoints& scan)
 		}
 		first_scan_.reset();
 		const auto& r = step.registration;
-		const auto& ev = r.information_eigenvalues;
+		const Eigen::Matrix<double, 6, 1> ev =
+		    Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>>(
+		        scaledInformation(r.information, r.lever_arm_m))
+		        .eigenvalues();
 		step.degenerate =
 		    ev[5] > 0 && ev[0] < cfg_.odometry.degeneracy_ratio * ev[5];
 		if (r.edge_matches + r.planar_matches >=
@@ -283,6 +287,7 @@ OdometryStep LidarOdometry::processScan(const core::ScanPoints& scan)
 			if (step.degenerate && velocity_trusted_ &&
 			    cfg_.odometry.degenerate_hold_ratio > 0)
 				pose = remapDegenerate(predicted, r.T, r.information,
+				                       r.lever_arm_m,
 				                       cfg_.odometry.degenerate_hold_ratio);
 			else
 				velocity_trusted_ = !step.degenerate && scans_ >= 2;

@@ -14,15 +14,24 @@
 
 namespace forest_slam::odometry
 {
+/** `information` (6x6, [rotation (rad), translation (m)] as
+ * RegistrationResult::information) with the rotation expressed as the
+ * displacement it causes at `lever_arm_m` ([L*rotation, translation]): in
+ * radians a rotation's information is the translation's times the squared
+ * range, so the eigenvalues of the raw matrix compare metres with radians
+ * and in a forest at 10-60 m range every translation looked "weak". */
+Eigen::Matrix<double, 6, 6> scaledInformation(
+    const Eigen::Matrix<double, 6, 6>& information, double lever_arm_m);
+
 /** `estimate` with its difference from `predicted` projected onto the
- * eigenvectors of `information` (6x6, [rotation, translation] as
- * RegistrationResult::information) whose eigenvalue is at least
- * `ratio` times the largest. Returns `estimate` when no direction is weak.
- * `weak_directions` (optional) gets how many were removed. */
+ * eigenvectors of scaledInformation(information, lever_arm_m) whose
+ * eigenvalue is at least `ratio` times the largest. Returns `estimate`
+ * when no direction is weak. `weak_directions` (optional) gets how many
+ * were removed. */
 Eigen::Isometry3d remapDegenerate(
     const Eigen::Isometry3d& predicted, const Eigen::Isometry3d& estimate,
-    const Eigen::Matrix<double, 6, 6>& information, double ratio,
-    int* weak_directions = nullptr);
+    const Eigen::Matrix<double, 6, 6>& information, double lever_arm_m,
+    double ratio, int* weak_directions = nullptr);
 
 /** Motion from t0 to t1 across a gap in the scans (t1 - t0 several scan
  * periods): `velocity` (the relative motion over one `period_s`, body frame)

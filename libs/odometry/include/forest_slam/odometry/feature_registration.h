@@ -120,6 +120,11 @@ struct RegistrationResult
 	 * degenerate directions (degeneracy.h). */
 	Eigen::Matrix<double, 6, 6> information =
 	    Eigen::Matrix<double, 6, 6>::Zero();
+	/** RMS distance of the matched points from the sensor [m]: a rotation
+	 * of 1 rad moves them this far on average, the scale that makes the
+	 * rotation and translation parts of `information` comparable
+	 * (degeneracy.h). */
+	double lever_arm_m = 0;
 };
 
 /** Optional priors of a registration. */

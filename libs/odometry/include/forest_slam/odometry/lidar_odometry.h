@@ -33,12 +33,15 @@ struct OdometryOptions : public mrpt::config::CLoadableOptions
 	 * and the motion model carries the pose (degenerate place). */
 	int min_matches = 50;
 	/** Smallest information eigenvalue relative to the largest below which
-	 * the scan is reported degenerate. */
-	double degeneracy_ratio = 1e-3;
-	/** In a degenerate scan, directions whose information is below this
-	 * fraction of the largest keep the prediction (IMU rotation + constant
-	 * velocity) instead of the registration (degeneracy.h); 0 disables. */
-	double degenerate_hold_ratio = 0.05;
+	 * the scan is reported degenerate; rotations count as the displacement
+	 * they cause at the points' RMS range (scaledInformation, degeneracy.h).
+	 * Forest scans stay above 0.04, ground-only scans fall to 0.02. */
+	double degeneracy_ratio = 0.035;
+	/** In a degenerate scan, directions whose (scaled) information is below
+	 * this fraction of the largest keep the prediction (IMU rotation +
+	 * constant velocity) instead of the registration (degeneracy.h); 0
+	 * disables. Ground only: x, y and yaw at 0.02-0.06 of the largest. */
+	double degenerate_hold_ratio = 0.1;
 
 	void loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 	                        const std::string& section) override;
