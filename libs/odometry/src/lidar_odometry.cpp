@@ -18,6 +18,7 @@ void OdometryOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 	FS_LOAD(c, s, min_matches);
 	FS_LOAD(c, s, degeneracy_ratio);
 	FS_LOAD(c, s, degenerate_hold_ratio);
+	FS_LOAD(c, s, async_map_insert);
 	const std::string where = core::configOrigin(c) + ": [" + s + "] ";
 	if (prune_every_scans < 1)
 		throw core::ConfigError(where + "prune_every_scans must be >= 1");
@@ -36,12 +37,14 @@ void OdometryOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
 	c.write(s, "min_matches", min_matches);
 	c.write(s, "degeneracy_ratio", degeneracy_ratio);
 	c.write(s, "degenerate_hold_ratio", degenerate_hold_ratio);
+	c.write(s, "async_map_insert", async_map_insert);
 }
 
 LidarOdometry::LidarOdometry(const OdometryConfig& cfg, map::CForestMap& map)
     : cfg_(cfg),
       local_map_(cfg.local_map, cfg.registration.plane_flatness),
       map_(map),
+      inserter_(map, cfg.odometry.async_map_insert ? 4 : 0),
       lattice_(cfg.ground)
 {
 }
@@ -165,12 +168,17 @@ void LidarOdometry::insert(const Prepared& s, const Eigen::Isometry3d& pose)
 		(s.feats.smoothness[i] > cfg_.features.edge_threshold ? map_edges
 		                                                      : map_planar)
 		    .push_back(s.points[i].xyz);
-	map_.insertFeatures(map_edges, map_planar, pose);
-	// The odometry's local map in the map frame.
+	// The odometry's local map in the map frame; the CForestMap gets the
+	// sensor-frame points on the inserter's thread.
 	const Eigen::Isometry3f T = pose.cast<float>();
-	for (auto& p : map_edges) p = T * p;
-	for (auto& p : map_planar) p = T * p;
-	local_map_.insert(map_edges, map_planar);
+	std::vector<Eigen::Vector3f> local_edges(map_edges.size()),
+	    local_planar(map_planar.size());
+	for (size_t i = 0; i < map_edges.size(); i++)
+		local_edges[i] = T * map_edges[i];
+	for (size_t i = 0; i < map_planar.size(); i++)
+		local_planar[i] = T * map_planar[i];
+	inserter_.push(std::move(map_edges), std::move(map_planar), pose);
+	local_map_.insert(local_edges, local_planar);
 }
 
 OdometryStep LidarOdometry::processScan(const core::ScanPoints& scan)
@@ -259,6 +267,7 @@ OdometryStep LidarOdometry::processScan(const core::ScanPoints& scan)
 				    core::interpolateIsometry(Eigen::Isometry3d::Identity(), v,
 				                              first_scan_->sweep_s / dt);
 				ScanTiming ignored;
+				inserter_.flush();
 				map_.clear();
 				local_map_.clear();
 				insert(prepare(*first_scan_, m0, last_pose_, ignored),

@@ -87,12 +87,8 @@ Shape shapeOf(const std::vector<std::pair<float, Eigen::Vector3f>>& pts)
 }
 }  // namespace
 
-void LocalMap::addPoint(PointGrid& g, float min_d2, const Eigen::Vector3f& p)
+void LocalMap::addPoint(PointCell& c, float min_d2, const Eigen::Vector3f& p)
 {
-	const double s = o_.cell_m;
-	auto& c = g[key(static_cast<int64_t>(std::floor(p.x() / s)),
-	                static_cast<int64_t>(std::floor(p.y() / s)),
-	                static_cast<int64_t>(std::floor(p.z() / s)))];
 	if (static_cast<int>(c.pts.size()) >= o_.max_points_per_cell) return;
 	for (const auto& q : c.pts)
 		if ((q - p).squaredNorm() < min_d2) return;
@@ -107,16 +103,18 @@ void LocalMap::insert(const std::vector<Eigen::Vector3f>& edges,
 	const float ed2 = static_cast<float>(o_.edge_spacing_m * o_.edge_spacing_m);
 	const double sc = o_.coarse_voxel_m;
 	std::vector<PlaneVoxel*> touched;
+	CellCache<PointGrid> planar_cells, edge_cells;
+	CellCache<PlaneGrid> coarse_cells;
 	for (const auto& p : planar)
 	{
 		if (!p.allFinite()) continue;
-		addPoint(planar_, pd2, p);
+		addPoint(planar_cells.get(planar_, cellKey(p)), pd2, p);
 		if (sc <= 0) continue;
 		const int64_t i = static_cast<int64_t>(std::floor(p.x() / sc)),
 		              j = static_cast<int64_t>(std::floor(p.y() / sc)),
 		              k = static_cast<int64_t>(std::floor(p.z() / sc));
-		auto [it, fresh] = coarse_.try_emplace(key(i, j, k));
-		auto& v = it->second;
+		bool fresh = false;
+		auto& v = coarse_cells.get(coarse_, key(i, j, k), &fresh);
 		if (fresh) v.origin = Eigen::Vector3d(i * sc, j * sc, k * sc);
 		if (v.n >= o_.max_points_per_voxel) continue;
 		const Eigen::Vector3d q = p.cast<double>() - v.origin;
@@ -131,7 +129,7 @@ void LocalMap::insert(const std::vector<Eigen::Vector3f>& edges,
 		v->touched = false;
 	}
 	for (const auto& p : edges)
-		if (p.allFinite()) addPoint(edges_, ed2, p);
+		if (p.allFinite()) addPoint(edge_cells.get(edges_, cellKey(p)), ed2, p);
 }
 
 void LocalMap::transform(const Eigen::Isometry3d& T)

@@ -262,9 +262,16 @@ void MappingPipeline::drainPending(bool all)
 	if (!pending_.empty() && reachedScanLimit()) pending_.clear();
 }
 
+const map::CForestMap& MappingPipeline::forestMap() const
+{
+	if (odometry_) odometry_->flushMap();
+	return map_;
+}
+
 void MappingPipeline::finish()
 {
 	drainPending(true);
+	if (odometry_) odometry_->flushMap();  // the outputs read the CForestMap
 	finishTreeLayer();
 	finishBackEnd();  // moves the trees with the corrected trajectory
 }

@@ -16,6 +16,7 @@
 #include <forest_slam/map/forest_map.h>
 #include <forest_slam/odometry/feature_registration.h>
 #include <forest_slam/odometry/local_map.h>
+#include <forest_slam/odometry/map_inserter.h>
 
 #include <optional>
 
@@ -42,6 +43,9 @@ struct OdometryOptions : public mrpt::config::CLoadableOptions
 	 * constant velocity) instead of the registration (degeneracy.h); 0
 	 * disables. Ground only: x, y and yaw at 0.02-0.06 of the largest. */
 	double degenerate_hold_ratio = 0.1;
+	/** Insert scans into the CForestMap on a worker thread while the next
+	 * scan is registered (MapInserter); the map's content is the same. */
+	bool async_map_insert = true;
 
 	void loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 	                        const std::string& section) override;
@@ -129,6 +133,10 @@ class LidarOdometry
 	 * unchanged. The CForestMap and the ground lattice are not moved. */
 	void applyCorrection(const Eigen::Isometry3d& C);
 
+	/** Returns when every processed scan is in the CForestMap (insertion
+	 * runs on a worker thread, MapInserter): call before reading the map. */
+	void flushMap() { inserter_.flush(); }
+
 	const ground::GroundLattice& groundLattice() const { return lattice_; }
 	const LocalMap& localMap() const { return local_map_; }
 	size_t scansProcessed() const { return scans_; }
@@ -154,6 +162,7 @@ class LidarOdometry
 	std::optional<core::ScanPoints> first_scan_;  ///< until the motion is known
 	bool first_scan_imu_ = false;  ///< the first scan was deskewed with the IMU
 	map::CForestMap& map_;
+	MapInserter inserter_;  ///< after map_: joined before the map goes
 	ground::GroundLattice lattice_;
 	Eigen::Isometry3d initial_pose_ = Eigen::Isometry3d::Identity();
 	Eigen::Isometry3d last_pose_ = Eigen::Isometry3d::Identity();

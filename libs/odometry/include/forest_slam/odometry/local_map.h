@@ -13,6 +13,7 @@
 // full map.
 #include <forest_slam/odometry/feature_registration.h>
 
+#include <cmath>
 #include <cstdint>
 #include <unordered_map>
 #include <vector>
@@ -119,7 +120,48 @@ class LocalMap : public RegistrationTarget
 	};
 	using PlaneGrid = std::unordered_map<Key, PlaneVoxel, KeyHash>;
 	using PointGrid = std::unordered_map<Key, PointCell, KeyHash>;
-	void addPoint(PointGrid& g, float min_d2, const Eigen::Vector3f& p);
+	/** The cells an insert() touched last, by key: a scan's consecutive
+	 * points (a firing column, then the next one) fall into the same few
+	 * cells, and the hash lookups were most of the insertion time.
+	 * unordered_map elements keep their address until erased, and insert()
+	 * never erases. */
+	template <class Grid>
+	class CellCache
+	{
+	   public:
+		typename Grid::mapped_type& get(Grid& g, Key k, bool* fresh = nullptr)
+		{
+			auto& e = slots_[KeyHash()(k) & (kSlots - 1)];
+			if (e.first == k)
+			{
+				if (fresh) *fresh = false;
+				return *e.second;
+			}
+			auto [it, added] = g.try_emplace(k);
+			if (fresh) *fresh = added;
+			e = {k, &it->second};
+			return it->second;
+		}
+
+	   private:
+		static constexpr size_t kSlots = 256;
+		// ~0 is no key: key() uses the low 63 bits only.
+		std::pair<Key, typename Grid::mapped_type*> slots_[kSlots];
+
+	   public:
+		CellCache()
+		{
+			for (auto& e : slots_) e = {~Key(0), nullptr};
+		}
+	};
+	void addPoint(PointCell& c, float min_d2, const Eigen::Vector3f& p);
+	Key cellKey(const Eigen::Vector3f& p) const
+	{
+		const double s = o_.cell_m;
+		return key(static_cast<int64_t>(std::floor(p.x() / s)),
+		           static_cast<int64_t>(std::floor(p.y() / s)),
+		           static_cast<int64_t>(std::floor(p.z() / s)));
+	}
 	/** Up to k nearest points of x within `extent`, nearest first. */
 	void knn(const PointGrid& g, const Eigen::Vector3f& x, int k, double extent,
 	         std::vector<std::pair<float, Eigen::Vector3f>>& best) const;

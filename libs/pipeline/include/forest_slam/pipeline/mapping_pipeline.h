@@ -78,7 +78,9 @@ class MappingPipeline
 	/** Lidar pose per mapped scan at the scan's reference time (its first
 	 * firing), in the map frame. */
 	const core::Trajectory& trajectory() const { return trajectory_; }
-	const map::CForestMap& forestMap() const { return map_; }
+	/** The map with every processed scan in it (waits for the odometry's
+	 * map inserter thread). */
+	const map::CForestMap& forestMap() const;
 	const RunStats& stats() const { return stats_; }
 	const MappingConfig& config() const { return cfg_; }
 	/** Keyframes, dense map and GNSS epochs for the output files. */

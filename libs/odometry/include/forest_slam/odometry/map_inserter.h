@@ -1,0 +1,59 @@
+#pragma once
+// Inserts scans into the CForestMap on a worker thread, in order, while the
+// odometry registers the next scan: the map's voxel filters took about a
+// sixth of a scan's time and nothing in the odometry reads the CForestMap
+// (registration uses its own LocalMap). Readers of the map call flush()
+// first.
+#include <forest_slam/map/forest_map.h>
+
+#include <Eigen/Geometry>
+#include <condition_variable>
+#include <deque>
+#include <exception>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+namespace forest_slam::odometry
+{
+class MapInserter
+{
+   public:
+	/** max_pending: scans waiting at most (the producer blocks beyond it, so
+	 * memory stays bounded when the map falls behind). 0 inserts on the
+	 * caller's thread (no worker). */
+	MapInserter(map::CForestMap& map, size_t max_pending);
+	~MapInserter();
+	MapInserter(const MapInserter&) = delete;
+	MapInserter& operator=(const MapInserter&) = delete;
+
+	/** Queues one scan: sensor-frame edge and planar points and the pose
+	 * that puts them in the map (CForestMap::insertFeatures). An error of an
+	 * earlier insertion is rethrown here. */
+	void push(std::vector<Eigen::Vector3f> edges,
+	          std::vector<Eigen::Vector3f> planar,
+	          const Eigen::Isometry3d& sensor_to_map);
+	/** Returns when every queued scan is in the map; rethrows a worker
+	 * error. */
+	void flush();
+
+   private:
+	struct Job
+	{
+		std::vector<Eigen::Vector3f> edges, planar;
+		Eigen::Isometry3d pose;
+	};
+	void run();
+	void rethrow();
+
+	map::CForestMap& map_;
+	const size_t max_pending_;
+	std::mutex m_;
+	std::condition_variable wake_, done_;
+	std::deque<Job> jobs_;
+	bool busy_ = false, stop_ = false;
+	std::exception_ptr error_;
+	std::thread worker_;
+};
+
+}  // namespace forest_slam::odometry
