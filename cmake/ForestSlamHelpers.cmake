@@ -35,6 +35,10 @@ function(forest_slam_gtest name)
   if(NOT ARG_TIMEOUT)
     set(ARG_TIMEOUT 300)
   endif()
+  # Sanitizer builds run the end-to-end tests 5-10x slower (make test-asan).
+  if(FOREST_SLAM_SANITIZE)
+    math(EXPR ARG_TIMEOUT "${ARG_TIMEOUT} * 10")
+  endif()
   # Scratch files of the tests go under the build tree (TMPDIR is what
   # std::filesystem::temp_directory_path() reads), not into the machine's
   # /tmp where every run used to leave its fs_* folders behind.
