@@ -205,10 +205,21 @@ struct GroundLattice::Scratch
 	std::vector<int32_t> cell_of;
 	std::vector<float> band;
 	std::vector<float> top;  ///< highest low return per foot cell of a node
+	/** Foot cell of each point of a node (slot in `top`) and the steps to
+	 * the neighbouring cells on its sides. */
+	struct Foot
+	{
+		int slot, du, dv;
+	};
+	std::vector<Foot> foot;
+	std::vector<uint8_t> lab;  ///< labels of a node's points, bit 1: foot?
 	std::vector<Eigen::Vector3f> sp;  ///< the points in cell order
 	std::vector<LatticeNode*> node;   ///< per cell; nullptr: no tile yet
 	std::vector<float> prior_h, prior_sigma;  ///< confident priors, else NaN
-	std::vector<float> sup;  ///< support offered to the neighbours, or NaN
+	/** Support offered to the neighbours, or NaN (padded grid). */
+	std::vector<float> sup;
+	std::vector<ptrdiff_t> support_step;  ///< support offsets in `sup`
+	std::vector<std::pair<double, double>> support_dxy;  ///< and in metres
 };
 
 GroundLattice::~GroundLattice() = default;
@@ -249,9 +260,9 @@ std::vector<uint8_t> GroundLattice::labelScan(
 	for (uint32_t i = 0; i < pts.size(); i++)
 	{
 		const auto& p = pts[i];
-		if (!p.allFinite()) continue;
 		const double dx = p.x() - sensor.x(), dy = p.y() - sensor.y();
-		if (dx * dx + dy * dy > r2) continue;
+		// (Written so that NaN and infinite coordinates fail it too.)
+		if (!(dx * dx + dy * dy <= r2) || !std::isfinite(p.z())) continue;
 		const int di = floorToInt(p.x() * inv_s + 0.5) - c0.i,
 		          dj = floorToInt(p.y() * inv_s + 0.5) - c0.j;
 		if (std::abs(di) > H || std::abs(dj) > H) continue;
@@ -262,49 +273,39 @@ std::vector<uint8_t> GroundLattice::labelScan(
 	S.start.assign(S.count.begin(), S.count.end());  // start[c]..start[c+1]
 	S.sorted.resize(S.count[ncell]);
 	S.sp.resize(S.count[ncell]);
+	S.zmin.assign(ncell, std::numeric_limits<float>::max());
 	for (uint32_t i = 0; i < pts.size(); i++)
-		if (S.cell_of[i] >= 0)
+		if (const int32_t c = S.cell_of[i]; c >= 0)
 		{
-			const uint32_t k = S.count[S.cell_of[i]]++;
+			const uint32_t k = S.count[c]++;
 			S.sorted[k] = i;
 			S.sp[k] = pts[i];
+			S.zmin[c] = std::min(S.zmin[c], pts[i].z());
 		}
 	const Eigen::Vector3f* sp = S.sp.data();
 
 	// 2. Level of each cell: median of its lowest band (robust to a single
-	// low outlier and to grass); moments of its ground candidates (up to
-	// level + ground threshold) for the plane fits.
-	S.zmin.assign(ncell, 0.f);
+	// low outlier and to grass).
 	S.level.assign(ncell, 0.f);
 	S.pred.assign(ncell, NAN);
 	S.state.assign(ncell, kUnseen);
-	S.mom.resize(ncell);  // set for every pending cell below, read only there
+	S.band.resize(S.sp.size());
 	for (size_t c = 0; c < ncell; c++)
 	{
 		const uint32_t b = S.start[c], e = S.start[c + 1];
 		if (e - b < static_cast<uint32_t>(opts_.min_points_per_node)) continue;
-		float zmin = std::numeric_limits<float>::max();
-		for (uint32_t k = b; k < e; k++) zmin = std::min(zmin, sp[k].z());
-		S.band.clear();
-		const float band_top = zmin + static_cast<float>(opts_.lowest_band_m);
-		for (uint32_t k = b; k < e; k++)
-			if (sp[k].z() <= band_top) S.band.push_back(sp[k].z());
-		const size_t q = S.band.size() / 2;
-		std::nth_element(S.band.begin(), S.band.begin() + q, S.band.end());
-		S.zmin[c] = zmin;
-		S.level[c] = S.band[q];
-		S.state[c] = kPending;
-		S.mom[c] = Moments();
-		const int di = static_cast<int>(c / W) - H,
-		          dj = static_cast<int>(c % W) - H;
-		const double xc = (c0.i + di) * s, yc = (c0.j + dj) * s;
-		const float top =
-		    S.level[c] + static_cast<float>(opts_.ground_threshold_m);
-		for (uint32_t k = b; k < e; k++)
+		const float band_top =
+		    S.zmin[c] + static_cast<float>(opts_.lowest_band_m);
+		float* const band = S.band.data();
+		size_t n = 0;
+		for (uint32_t k = b; k < e; k++)  // branch-free
 		{
-			const auto& p = sp[k];
-			if (p.z() <= top) S.mom[c].add(p.x() - xc, p.y() - yc, p.z() - zs);
+			band[n] = sp[k].z();
+			n += sp[k].z() <= band_top;
 		}
+		std::nth_element(band, band + n / 2, band + n);
+		S.level[c] = band[n / 2];
+		S.state[c] = kPending;
 	}
 
 	// Nodes of the window (a few tile look-ups) and their confident priors
@@ -360,34 +361,65 @@ std::vector<uint8_t> GroundLattice::labelScan(
 		for (int dj = -reach; dj <= reach; dj++)
 			if (di || dj) support.push_back({di, dj});
 	// What a cell offers its neighbours' support: its level once accepted
-	// (or capped), its confident prior while unseen this scan, else NaN.
-	S.sup.assign(ncell, NAN);
-	for (size_t c = 0; c < ncell; c++)
-		if (S.state[c] == kUnseen) S.sup[c] = S.prior_h[c];
+	// (or capped), its confident prior while unseen this scan, else NaN. On
+	// a grid padded by `reach` NaN cells, so that the support of any window
+	// cell is read without bounds checks.
+	const int PW = W + 2 * reach;
+	auto padIndex = [&](int di, int dj)
+	{ return static_cast<size_t>(di + H + reach) * PW + (dj + H + reach); };
+	S.sup.assign(static_cast<size_t>(PW) * PW, NAN);
+	for (int di = -H; di <= H; di++)
+		for (int dj = -H; dj <= H; dj++)
+		{
+			const size_t c = cellIndex(di, dj);
+			if (S.state[c] == kUnseen) S.sup[padIndex(di, dj)] = S.prior_h[c];
+		}
+	S.support_step.clear();
+	S.support_dxy.clear();
+	for (const auto& o : support)
+	{
+		S.support_step.push_back(o.i * PW + o.j);
+		S.support_dxy.push_back({o.i * s, o.j * s});
+	}
 	struct Level
 	{
 		double dx, dy, z;
 		bool used;
 	};
 	std::vector<Level> around;
-	// Trimmed plane through the used levels of `around`: fitted, levels more
+	// The levels around the cell being decided: the support (at most
+	// support.size()), then for a bridge the pending levels around it.
+	// (Offsets as indices into `support`.)
+	struct Near
+	{
+		float z;
+		uint16_t k;
+		bool used;
+	};
+	std::vector<Near> near(2 * support.size());
+	size_t n_near = 0;
+	// Trimmed plane through the used levels lv[0, nl): fitted, levels more
 	// than max_step above it dropped (dropped ones back in if they fit
 	// again), refitted. Returns the number of levels it rests on; sol[0] is
 	// the prediction at (0, 0). The normal equations are kept as sums that
 	// follow the trimming.
-	auto trimmedPlane = [&](Eigen::Vector3d& sol)
+	auto trimmedPlane =
+	    [&](Near* const lv, const size_t nl, Eigen::Vector3d& sol)
 	{
+		Near* const lv_end = lv + nl;
+		const auto* const dxy = S.support_dxy.data();
 		double n = 0, x = 0, y = 0, xx = 0, xy = 0, yy = 0, z = 0, xz = 0,
 		       yz = 0;
-		auto add = [&](const Level& l, double w)
+		auto add = [&](const Near& l, double w)
 		{
-			n += w, x += w * l.dx, y += w * l.dy, z += w * l.z;
-			xx += w * l.dx * l.dx, xy += w * l.dx * l.dy, yy += w * l.dy * l.dy;
-			xz += w * l.dx * l.z, yz += w * l.dy * l.z;
+			const double dx = dxy[l.k].first, dy = dxy[l.k].second, lz = l.z;
+			n += w, x += w * dx, y += w * dy, z += w * lz;
+			xx += w * dx * dx, xy += w * dx * dy, yy += w * dy * dy;
+			xz += w * dx * lz, yz += w * dy * lz;
 		};
 		int used = 0;
-		for (const auto& l : around)
-			if (l.used) add(l, 1), used++;
+		for (const Near* l = lv; l != lv_end; l++)
+			if (l->used) add(*l, 1), used++;
 		sol = Eigen::Vector3d::Zero();
 		for (int iter = 0; iter < 4; iter++)
 		{
@@ -398,11 +430,12 @@ std::vector<uint8_t> GroundLattice::labelScan(
 			A << n + 1e-6, x, y, x, xx + s * s, xy, y, xy, yy + s * s;
 			solveSym3(A, Eigen::Vector3d(z, xz, yz), sol);
 			bool changed = false;
-			for (auto& l : around)
+			for (Near* pl = lv; pl != lv_end; pl++)
 			{
-				const bool keep =
-				    l.z - (sol[0] + sol[1] * l.dx + sol[2] * l.dy) <=
-				    opts_.max_step_m;
+				Near& l = *pl;
+				const bool keep = l.z - (sol[0] + sol[1] * dxy[l.k].first +
+				                         sol[2] * dxy[l.k].second) <=
+				                  opts_.max_step_m;
 				if (keep == l.used) continue;
 				changed = true;
 				add(l, keep ? 1 : -1);
@@ -411,7 +444,7 @@ std::vector<uint8_t> GroundLattice::labelScan(
 			}
 			if (!changed) return used;
 		}
-		return static_cast<int>(around.size());
+		return static_cast<int>(nl);
 	};
 	// Seed plane: the lower envelope of the levels near the sensor (a plane
 	// refitted to the levels within max_step above it, starting low), so
@@ -475,18 +508,19 @@ std::vector<uint8_t> GroundLattice::labelScan(
 			S.pred[c] = ph;
 			continue;
 		}
-		around.clear();
+		n_near = 0;
 		bool seeded_only = true;
-		for (const auto& o : support)
+		const float* const sup_c = &S.sup[padIndex(off.i, off.j)];
+		for (size_t k = 0; k < S.support_step.size(); k++)
 		{
-			const int ni = off.i + o.i, nj = off.j + o.j;
-			if (std::abs(ni) > H || std::abs(nj) > H) continue;
-			const float v = S.sup[cellIndex(ni, nj)];
-			if (!std::isnan(v)) around.push_back({o.i * s, o.j * s, v, true});
+			// Branch-free: which neighbours have ground is unpredictable.
+			const float v = sup_c[S.support_step[k]];
+			near[n_near] = {v, static_cast<uint16_t>(k), true};
+			n_near += !std::isnan(v);
 		}
 		bool ok = false;
 		Eigen::Vector3d sol;
-		if (around.size() >= 3 && trimmedPlane(sol) >= 3)
+		if (n_near >= 3 && trimmedPlane(near.data(), n_near, sol) >= 3)
 		{
 			seeded_only = false;
 			S.pred[c] = static_cast<float>(sol[0]);
@@ -530,16 +564,18 @@ std::vector<uint8_t> GroundLattice::labelScan(
 			    level - sector_z[from] <=
 			        opts_.max_step_m + tan_slope * (d - sector_d[from]))
 			{
-				for (const auto& o : support)
+				for (size_t k = 0; k < support.size(); k++)
 				{
-					const int ni = off.i + o.i, nj = off.j + o.j;
+					const int ni = off.i + support[k].i,
+					          nj = off.j + support[k].j;
 					if (std::abs(ni) > H || std::abs(nj) > H) continue;
 					const size_t nb = cellIndex(ni, nj);
 					if (S.state[nb] != kUnseen && S.state[nb] != kAccepted)
-						around.push_back({o.i * s, o.j * s, S.level[nb], true});
+						near[n_near++] = {S.level[nb], static_cast<uint16_t>(k),
+						                  true};
 				}
 				ok = true;
-				if (around.size() >= 4 && trimmedPlane(sol) >= 3)
+				if (n_near >= 4 && trimmedPlane(near.data(), n_near, sol) >= 3)
 					ok = level - sol[0] <= opts_.max_step_m;
 			}
 		}
@@ -555,7 +591,7 @@ std::vector<uint8_t> GroundLattice::labelScan(
 		}
 		if (ok)
 		{
-			S.sup[c] = S.level[c];
+			S.sup[padIndex(off.i, off.j)] = S.level[c];
 			sector_z[bin] = static_cast<float>(level);
 			sector_d[bin] = static_cast<float>(d);
 		}
@@ -563,7 +599,25 @@ std::vector<uint8_t> GroundLattice::labelScan(
 
 	// 4. Local plane per accepted node from the ground candidates of the
 	// accepted cells around it, fused with the node's prior (Kalman-style).
-	// (Independent per cell: memory order.)
+	// (Independent per cell: memory order.) The moments of the ground
+	// candidates (up to level + ground threshold) of the accepted cells
+	// first, the only ones the plane fits read.
+	S.mom.resize(ncell);
+	for (size_t c = 0; c < ncell; c++)
+	{
+		if (S.state[c] != kAccepted) continue;
+		S.mom[c] = Moments();
+		const int di = static_cast<int>(c / W) - H,
+		          dj = static_cast<int>(c % W) - H;
+		const double xc = (c0.i + di) * s, yc = (c0.j + dj) * s;
+		const float top =
+		    S.level[c] + static_cast<float>(opts_.ground_threshold_m);
+		for (uint32_t k = S.start[c]; k < S.start[c + 1]; k++)
+		{
+			const auto& p = sp[k];
+			if (p.z() <= top) S.mom[c].add(p.x() - xc, p.y() - yc, p.z() - zs);
+		}
+	}
 	for (size_t c = 0; c < ncell; c++)
 	{
 		if (S.state[c] == kUnseen) continue;
@@ -650,8 +704,11 @@ std::vector<uint8_t> GroundLattice::labelScan(
 		if (zs > z_under) band_k = opts_.max_band_length_m * (zs - z_under);
 	}
 	const double fc = opts_.foot_radius_m;
+	S.top.clear();
 	const int L = fc > 0 ? static_cast<int>(std::ceil(s / fc)) + 2 : 0;
 	const double inv_fc = fc > 0 ? 1.0 / fc : 0.0;
+	const double thr = opts_.ground_threshold_m, band_k2 = band_k * band_k;
+	S.lab.resize(S.sp.size());
 	for (size_t c = 0; c < ncell; c++)  // memory order: sp is read in turn
 	{
 		const uint32_t b = S.start[c], e = S.start[c + 1];
@@ -663,19 +720,13 @@ std::vector<uint8_t> GroundLattice::labelScan(
 		const LatticeNode* node =
 		    S.node[c] && S.node[c]->observations > 0 ? S.node[c] : nullptr;
 		if (!node && !std::isfinite(S.pred[c])) continue;
-		// Highest low return per foot cell of this node (built on demand;
-		// a foot and the surface above it are in the same node but at
-		// its border).
-		bool have_top = false;
-		const double gx0 = xc - 0.5 * s - fc, gy0 = yc - 0.5 * s - fc;
-		auto footCell = [&](const Eigen::Vector3f& p, int& u, int& v)
-		{
-			const double fu = (p.x() - gx0) * inv_fc,
-			             fv = (p.y() - gy0) * inv_fc;
-			u = std::clamp(static_cast<int>(fu), 0, L - 1);
-			v = std::clamp(static_cast<int>(fv), 0, L - 1);
-			return std::make_pair(fu - u < 0.5 ? -1 : 1, fv - v < 0.5 ? -1 : 1);
-		};
+		// Two passes over the node's points: labels by height (and whether
+		// the foot check applies); then, if it applies to any, the highest
+		// low return per foot cell of this node (a foot and the surface
+		// above it are in the same node but at its border) and the check.
+		// Branch-free where the outcome is data-dependent.
+		bool any_foot = false;
+		float cap = 0;
 		for (uint32_t k = b; k < e; k++)
 		{
 			const auto& p = sp[k];
@@ -683,46 +734,66 @@ std::vector<uint8_t> GroundLattice::labelScan(
 			                                   node->sy * (p.y() - yc)
 			                             : S.pred[c];
 			const double dz = p.z() - ground_z;
-			double threshold = opts_.ground_threshold_m;
+			// dz < min(threshold, band_k / horizontal distance), without
+			// the square root.
+			uint8_t lab = dz < thr;
 			if (band_k > 0)
 			{
 				const double bx = p.x() - sensor.x(), by = p.y() - sensor.y();
-				threshold =
-				    std::min(threshold, band_k / std::sqrt(bx * bx + by * by));
+				lab &= !(dz > 0) | (dz * dz * (bx * bx + by * by) < band_k2);
 			}
-			uint8_t lab = dz < threshold;
 			// Below the plane a point is ground even under foliage (ground
-			// seen through a shrub); above it, a foot is not.
-			if (lab && dz >= 0 && L > 0)
+			// seen through a shrub); above it, a foot is not: bit 1.
+			const uint8_t foot = lab & (dz >= 0) & (L > 0);
+			if (foot && !any_foot)
 			{
-				if (!have_top)
-				{
-					have_top = true;
-					S.top.assign(static_cast<size_t>(L) * L, -INFINITY);
-					const float cap =
-					    static_cast<float>(ground_z + opts_.foot_reach_m);
-					for (uint32_t q = b; q < e; q++)
-					{
-						const auto& r = sp[q];
-						if (r.z() > cap) continue;
-						int u, v;
-						footCell(r, u, v);
-						float& t = S.top[static_cast<size_t>(u) * L + v];
-						t = std::max(t, r.z());
-					}
-				}
-				int u, v;
-				const auto [su, sv] = footCell(p, u, v);
-				const float above =
-				    p.z() + static_cast<float>(opts_.foot_gap_m);
-				for (int uu : {u, u + su})
-					for (int vv : {v, v + sv})
-						if (uu >= 0 && vv >= 0 && uu < L && vv < L &&
-						    S.top[static_cast<size_t>(uu) * L + vv] > above)
-							lab = 0;
+				any_foot = true;
+				cap = static_cast<float>(ground_z + opts_.foot_reach_m);
 			}
-			labels[S.sorted[k]] = lab;
+			S.lab[k - b] = static_cast<uint8_t>(lab | foot << 1);
 		}
+		if (any_foot)
+		{
+			// Foot cells (u, v) in [0, L) on a grid padded by one cell of
+			// -inf: the point's cell, the neighbours on the sides of it the
+			// point is nearest to.
+			const int P = L + 2;
+			const double gx0 = xc - 0.5 * s - fc, gy0 = yc - 0.5 * s - fc;
+			// (All -inf between nodes: reset through the points' slots.)
+			if (S.top.size() != static_cast<size_t>(P) * P)
+				S.top.assign(static_cast<size_t>(P) * P, -INFINITY);
+			S.foot.resize(e - b);
+			for (uint32_t k = b; k < e; k++)
+			{
+				const auto& p = sp[k];
+				const double fu = (p.x() - gx0) * inv_fc,
+				             fv = (p.y() - gy0) * inv_fc;
+				const int u = std::clamp(static_cast<int>(fu), 0, L - 1),
+				          v = std::clamp(static_cast<int>(fv), 0, L - 1);
+				const int slot = (u + 1) * P + v + 1;
+				S.foot[k - b] = {slot, fu - u < 0.5 ? -P : P,
+				                 fv - v < 0.5 ? -1 : 1};
+				float& t = S.top[slot];
+				t = std::max(t, p.z() <= cap ? p.z() : -INFINITY);
+			}
+			const float gap = static_cast<float>(opts_.foot_gap_m);
+			const float* const top = S.top.data();
+			for (uint32_t k = b; k < e; k++)
+			{
+				const auto& f = S.foot[k - b];
+				const float t = std::max(
+				    std::max(top[f.slot], top[f.slot + f.dv]),
+				    std::max(top[f.slot + f.du], top[f.slot + f.du + f.dv]));
+				const uint8_t l = S.lab[k - b];
+				labels[S.sorted[k]] =
+				    (l & 1) & !((l >> 1) & (t > sp[k].z() + gap));
+			}
+			for (uint32_t k = b; k < e; k++)
+				S.top[S.foot[k - b].slot] = -INFINITY;
+		}
+		else
+			for (uint32_t k = b; k < e; k++)
+				labels[S.sorted[k]] = S.lab[k - b] & 1;
 	}
 	return labels;
 }
