@@ -5,10 +5,13 @@
 // Scans: the real VLP-16 scan of ../shared/data/mrpt/rot_scan_velodyne.rawlog
 // ("real") and, if FOREST_SLAM_BENCH_SIM names a forest-sim run directory
 // (scripts/bench-frontend.sh passes build/bench-sim/handheld), a forest scan
-// of it ("forest"), which has about twice as many returns.
-// Usage: bench_frontend_stages [--benchmark_* flags]
+// of it ("forest"), which has about twice as many returns. Stage options:
+// the [ground] [cluster] [features] sections of the shipped
+// ini/vlp16-handheld.ini (the robot INI has the same ones), or of FILE.
+// Usage: bench_frontend_stages [--ini FILE] [--benchmark_* flags]
 #include <benchmark/benchmark.h>
 #include <forest_slam/cluster/hierarchical_kmeans.h>
+#include <forest_slam/core/config.h>
 #include <forest_slam/core/scan_points.h>
 #include <forest_slam/features/feature_extractor.h>
 #include <forest_slam/ground/ground_lattice.h>
@@ -17,6 +20,7 @@
 
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <map>
 #include <string>
 
@@ -32,6 +36,19 @@ struct Prepared
 	std::vector<uint32_t> non_ground_idx;
 	std::vector<features::FeatureInputPoint> fin;
 };
+
+/** The stage options the benchmarks run with. */
+struct StageOptions
+{
+	ground::GroundOptions ground;
+	cluster::ClusterOptions cluster;
+	features::FeatureOptions features;
+};
+StageOptions& stageOptions()
+{
+	static StageOptions o;
+	return o;
+}
 
 core::ScanPoints readScan(const std::string& path, size_t index)
 {
@@ -62,7 +79,7 @@ Prepared prepare(const core::ScanPoints& sp)
 		f.column = q.column;
 		p.fin.push_back(f);
 	}
-	ground::GroundLattice g;
+	ground::GroundLattice g(stageOptions().ground);
 	const auto lab = g.labelScan(p.xyz, Eigen::Vector3d::Zero());
 	for (size_t i = 0; i < lab.size(); i++)
 	{
@@ -73,7 +90,8 @@ Prepared prepare(const core::ScanPoints& sp)
 			p.non_ground_idx.push_back(static_cast<uint32_t>(i));
 		}
 	}
-	const auto cl = cluster::hierarchicalKMeans(p.non_ground);
+	const auto cl =
+	    cluster::hierarchicalKMeans(p.non_ground, stageOptions().cluster);
 	for (size_t k = 0; k < p.non_ground_idx.size(); k++)
 		p.fin[p.non_ground_idx[k]].cluster = cl.cluster[k];
 	return p;
@@ -88,7 +106,8 @@ std::map<std::string, Prepared>& scans()
 void BM_Ground(benchmark::State& st, const std::string& name)
 {
 	const auto& p = scans().at(name);
-	ground::GroundLattice g;  // kept across scans, as in the pipeline
+	// Kept across scans, as in the pipeline.
+	ground::GroundLattice g(stageOptions().ground);
 	size_t n_ground = 0;
 	for (auto _ : st)
 	{
@@ -106,7 +125,8 @@ void BM_Cluster(benchmark::State& st, const std::string& name)
 	size_t n = 0;
 	for (auto _ : st)
 	{
-		const auto cl = cluster::hierarchicalKMeans(p.non_ground);
+		const auto cl =
+		    cluster::hierarchicalKMeans(p.non_ground, stageOptions().cluster);
 		benchmark::DoNotOptimize(cl.cluster.data());
 		n = cl.clusterCount();
 	}
@@ -120,7 +140,8 @@ void BM_Features(benchmark::State& st, const std::string& name)
 	size_t e = 0, pl = 0;
 	for (auto _ : st)
 	{
-		const auto f = features::extractFeatures(p.fin);
+		const auto f =
+		    features::extractFeatures(p.fin, stageOptions().features);
 		benchmark::DoNotOptimize(f.edges.data());
 		e = f.edges.size();
 		pl = f.planar.size();
@@ -134,8 +155,26 @@ void BM_Features(benchmark::State& st, const std::string& name)
 int main(int argc, char** argv)
 {
 	benchmark::Initialize(&argc, argv);
+	std::string ini = "ini/vlp16-handheld.ini";
+	for (int a = 1; a < argc; a++)
+	{
+		if (!std::strcmp(argv[a], "--ini") && a + 1 < argc)
+			ini = argv[++a];
+		else
+		{
+			std::fprintf(stderr,
+			             "usage: bench_frontend_stages [--ini FILE] "
+			             "[--benchmark_* flags]\n");
+			return 2;
+		}
+	}
 	try
 	{
+		auto cfg = core::TrackedConfig::fromFile(ini);
+		stageOptions().ground.loadFromConfigFile(cfg, "ground");
+		stageOptions().cluster.loadFromConfigFile(cfg, "cluster");
+		stageOptions().features.loadFromConfigFile(cfg, "features");
+		std::printf("stage options: %s\n", ini.c_str());
 		scans()["real"] = prepare(
 		    readScan("../shared/data/mrpt/rot_scan_velodyne.rawlog", 0));
 		if (const char* dir = std::getenv("FOREST_SLAM_BENCH_SIM"))

@@ -255,19 +255,23 @@ std::vector<uint8_t> GroundLattice::labelScan(
 	// the points are copied in cell order so that every later pass over a
 	// cell reads contiguous memory.
 	S.count.assign(ncell + 1, 0);
-	S.cell_of.assign(pts.size(), -1);
+	S.cell_of.resize(pts.size());
 	const double inv_s = 1.0 / s;
 	for (uint32_t i = 0; i < pts.size(); i++)
 	{
 		const auto& p = pts[i];
+		S.cell_of[i] = -1;
 		const double dx = p.x() - sensor.x(), dy = p.y() - sensor.y();
 		// (Written so that NaN and infinite coordinates fail it too.)
 		if (!(dx * dx + dy * dy <= r2) || !std::isfinite(p.z())) continue;
-		const int di = floorToInt(p.x() * inv_s + 0.5) - c0.i,
-		          dj = floorToInt(p.y() * inv_s + 0.5) - c0.j;
-		if (std::abs(di) > H || std::abs(dj) > H) continue;
-		S.cell_of[i] = cellIndex(di, dj);
-		S.count[S.cell_of[i] + 1]++;
+		// Window indices 0..W-1 (unsigned: one comparison each).
+		const uint32_t ui = floorToInt(p.x() * inv_s + 0.5) - c0.i + H,
+		               uj = floorToInt(p.y() * inv_s + 0.5) - c0.j + H;
+		if (ui >= static_cast<uint32_t>(W) || uj >= static_cast<uint32_t>(W))
+			continue;
+		const int32_t c = static_cast<int32_t>(ui * W + uj);
+		S.cell_of[i] = c;
+		S.count[c + 1]++;
 	}
 	for (size_t c = 0; c < ncell; c++) S.count[c + 1] += S.count[c];
 	S.start.assign(S.count.begin(), S.count.end());  // start[c]..start[c+1]
@@ -726,7 +730,7 @@ std::vector<uint8_t> GroundLattice::labelScan(
 		// above it are in the same node but at its border) and the check.
 		// Branch-free where the outcome is data-dependent.
 		bool any_foot = false;
-		float cap = 0;
+		float cap = 0, foot_zmin = INFINITY;
 		for (uint32_t k = b; k < e; k++)
 		{
 			const auto& p = sp[k];
@@ -750,7 +754,19 @@ std::vector<uint8_t> GroundLattice::labelScan(
 				any_foot = true;
 				cap = static_cast<float>(ground_z + opts_.foot_reach_m);
 			}
+			foot_zmin = std::min(foot_zmin, foot ? p.z() : INFINITY);
 			S.lab[k - b] = static_cast<uint8_t>(lab | foot << 1);
+		}
+		if (any_foot)
+		{
+			// No return foot_gap_m above the lowest point checked (and below
+			// the cap): no foot in this node.
+			float low_top = -INFINITY;
+			for (uint32_t k = b; k < e; k++)
+				low_top =
+				    std::max(low_top, sp[k].z() <= cap ? sp[k].z() : -INFINITY);
+			any_foot =
+			    low_top > foot_zmin + static_cast<float>(opts_.foot_gap_m);
 		}
 		if (any_foot)
 		{
