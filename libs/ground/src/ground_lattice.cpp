@@ -541,9 +541,13 @@ std::vector<uint8_t> GroundLattice::labelScan(
 		const double dx = (c0.i + off.i) * s - sensor.x(),
 		             dy = (c0.j + off.j) * s - sensor.y();
 		const double d = std::sqrt(dx * dx + dy * dy);
-		const int bin = static_cast<int>((std::atan2(dy, dx) + M_PI) /
-		                                 (2 * M_PI) * kSectors) %
-		                kSectors;
+		// (Only for cells that bridge or are accepted.)
+		auto sectorOf = [&]
+		{
+			return static_cast<int>((std::atan2(dy, dx) + M_PI) / (2 * M_PI) *
+			                        kSectors) %
+			       kSectors;
+		};
 		if (seeded_only && d <= opts_.seed_radius_m)
 			ok = seed_ok && level <= zs - opts_.seed_below_sensor_m &&
 			     level - (seed[0] + seed[1] * dx + seed[2] * dy) <=
@@ -557,6 +561,7 @@ std::vector<uint8_t> GroundLattice::labelScan(
 			// the levels around it. Only below the sensor: canopy seen by
 			// the upward beams never bridges.
 			int from = -1;
+			const int bin = sectorOf();
 			for (int k = bin - 1; k <= bin + 1; k++)
 			{
 				const int b = (k + kSectors) % kSectors;
@@ -596,6 +601,7 @@ std::vector<uint8_t> GroundLattice::labelScan(
 		if (ok)
 		{
 			S.sup[padIndex(off.i, off.j)] = S.level[c];
+			const int bin = sectorOf();
 			sector_z[bin] = static_cast<float>(level);
 			sector_d[bin] = static_cast<float>(d);
 		}
