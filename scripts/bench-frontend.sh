@@ -3,7 +3,8 @@
 # features, each on one core, on the real VLP-16 scan of
 # ../shared/data/mrpt/rot_scan_velodyne.rawlog and, when the forest-sim
 # handheld run of scripts/bench-sim.sh exists in BUILD/bench-sim, on one of
-# its forest scans. Targets (issue 5): ground <= 1 ms, cluster <= 3 ms,
+# its forest scans, with the [ground] [cluster] [features] options of
+# ini/vlp16-handheld.ini. Targets (issue 5): ground <= 1 ms, cluster <= 3 ms,
 # features <= 1 ms per scan. Quality figures: scripts/bench-frontend-quality.sh.
 set -euo pipefail
 BUILD=${1:-build}
