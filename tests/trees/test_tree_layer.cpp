@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <random>
 #include <set>
 
@@ -181,4 +182,54 @@ TEST(TreeLayer, SpilledColumnsReloadIdentically)
 		for (size_t i = 0; i < a.size(); i++) EXPECT_EQ(a[i], b[i]);
 	}
 	EXPECT_EQ(mem.stats().stored_voxels, spill.stats().stored_voxels);
+}
+
+// Multi-view DBH (dbh_segment_scans > 0): a pose error that jumps by 4 cm
+// halfway along the path doubles the rings of the stems seen before and
+// after it; with the breast-height band kept per time segment each segment
+// gets its own shift and the DBH stays within 1 cm.
+TEST(TreeLayer, SegmentShiftsAbsorbAPoseJump)
+{
+	const std::vector<Stem> stems = {
+	    {24, 5, 0.15}, {27, -6, 0.2}, {33, 4, 0.12}};
+	for (int segments : {0, 5})
+	{
+		TreeOptions o;
+		o.dbh_segment_scans = segments;
+		// One range class: the near classes alone can leave the segment
+		// that spans the jump (two rings) dominant.
+		o.dbh_range_step_m = 0;
+		TreeLayer layer(o, 20.0);
+		map::CForestMap m;
+		std::mt19937 rng(5);
+		for (double x = 5; x <= 60; x += 1.0)
+		{
+			const Eigen::Vector3d s(x, 0, ground(x, 0) + 1.5);
+			auto pts = scan(stems, s, rng);
+			// From x = 28 on the poses are 4 cm off, towards -x.
+			const Eigen::Vector3f jump(x >= 28 ? -0.04f : 0.f, 0, 0);
+			for (auto& p : pts) p += jump;
+			layer.addScan(pts, s + jump.cast<double>());
+			layer.update(s, m);
+		}
+		layer.finish(m);
+		ASSERT_EQ(m.trees().size(), stems.size()) << segments;
+		double max_err = 0;
+		for (const auto& t : stems)
+		{
+			const map::TreeRecord* best = nullptr;
+			for (const auto& r : m.trees())
+				if (!best || std::hypot(r.x - t.x, r.y - t.y) <
+				                 std::hypot(best->x - t.x, best->y - t.y))
+					best = &r;
+			max_err = std::max(max_err, std::abs(best->dbh_m - 2 * t.r));
+		}
+		std::printf(
+		    "pose jump 4 cm, dbh_segment_scans %d: max DBH error %.1f mm\n",
+		    segments, 1e3 * max_err);
+		if (segments > 0)
+		{
+			EXPECT_LT(max_err, 0.01);
+		}
+	}
 }

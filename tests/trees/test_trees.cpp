@@ -7,6 +7,7 @@
 #include <forest_slam/trees/stem_clustering.h>
 #include <forest_slam/trees/stem_detector.h>
 #include <forest_slam/trees/terrain_model.h>
+#include <forest_slam/trees/tree_options.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -118,6 +119,124 @@ TEST(CircleFit, AlongRayNoiseOneSidedView)
 	    1e3 * sum_orth / trials, 1e3 * sum_ray / trials);
 	EXPECT_LT(sum_orth / trials, -0.005);
 	EXPECT_LE(std::abs(sum_ray / trials), 0.002);
+}
+
+// Multi-view fit (SLAM run): three time segments see a 30 cm stem from
+// three sides (σ = 1 cm along the rays), each shifted by a pose error of
+// 4 cm towards its sensor. One circle through the union is too
+// large (doubled rings); one shift per segment recovers the DBH and the
+// consensus centre, and the shifts themselves (relative to their mean).
+TEST(CircleFit, SegmentShiftsRecoverDoubledRings)
+{
+	std::mt19937 rng(7);
+	std::normal_distribution<double> g(0, 0.01);
+	const Eigen::Vector2d c(3.0, -1.0);
+	const double r = 0.15, range = 5.0;
+	double sum_union = 0, sum_seg = 0, max_seg = 0, max_shift_err = 0;
+	const int trials = 50;
+	for (int t = 0; t < trials; t++)
+	{
+		Points2D p, d, shift(3);
+		std::vector<uint32_t> seg;
+		for (int s = 0; s < 3; s++)
+		{
+			const double view = 2 * M_PI * s / 3 + 0.3 * t;
+			// Towards the sensor: the worst case, the union looks like one
+			// circle 4 cm too large.
+			shift[s] = 0.04 * Eigen::Vector2d(std::cos(view), std::sin(view));
+			const Eigen::Vector2d o =
+			    c + range * Eigen::Vector2d(std::cos(view), std::sin(view));
+			const double half = std::asin(r / range);
+			for (double b = -half; b <= half; b += 0.02 * M_PI / 180)
+			{
+				const double a = view + M_PI + b;
+				const Eigen::Vector2d dir(std::cos(a), std::sin(a));
+				const double bb = (o - c).dot(dir),
+				             cc = (o - c).squaredNorm() - r * r;
+				if (bb * bb - cc < 0) continue;
+				p.push_back(o + (-bb - std::sqrt(bb * bb - cc) + g(rng)) * dir +
+				            shift[s]);
+				d.push_back(dir);
+				seg.push_back(uint32_t(10 + s));
+			}
+		}
+		const auto f = fitCircleRobust(p, opts());
+		ASSERT_TRUE(f.ok);
+		sum_union += f.circle.radius_m - r;
+		Circle cs = f.circle;
+		Points2D sh;
+		ASSERT_TRUE(refineCircleSegments(p, d, seg, 0.05, cs, &sh));
+		ASSERT_EQ(sh.size(), p.size());
+		sum_seg += cs.radius_m - r;
+		max_seg = std::max(max_seg, std::abs(cs.radius_m - r));
+		// Shifts are found up to their common part (the consensus centre
+		// absorbs it): compare centre + shift with the truth.
+		for (size_t i = 0; i < p.size(); i++)
+			max_shift_err =
+			    std::max(max_shift_err,
+			             (cs.centre + sh[i] - (c + shift[seg[i] - 10])).norm());
+	}
+	std::printf(
+	    "3 views, rings offset 4 cm: mean radius error union %.1f mm, per-"
+	    "segment shifts %.2f mm (max %.1f mm), segment circle centre error "
+	    "max %.1f mm\n",
+	    1e3 * sum_union / trials, 1e3 * sum_seg / trials, 1e3 * max_seg,
+	    1e3 * max_shift_err);
+	EXPECT_GT(sum_union / trials, 0.02);  // the doubled rings inflate it
+	EXPECT_LE(std::abs(sum_seg / trials), 0.001);
+	EXPECT_LE(max_seg, 0.004);
+	EXPECT_LE(max_shift_err, 0.006);
+}
+
+// fitDbhSegments: the same three offset views as band points of one stem,
+// started from the inflated union circle: the DBH within 5 mm; with a
+// single segment (no shifts possible) it stays a plain fit of the union.
+TEST(CircleFit, DbhSegmentsFromInflatedStart)
+{
+	std::mt19937 rng(11);
+	std::normal_distribution<double> g(0, 0.01);
+	const double r = 0.12, range = 4.0;
+	Points2D p, d;
+	std::vector<uint32_t> seg;
+	for (int s = 0; s < 3; s++)
+	{
+		const double view = 2 * M_PI * s / 3;
+		const Eigen::Vector2d o =
+		    range * Eigen::Vector2d(std::cos(view), std::sin(view));
+		const double half = std::asin(r / range);
+		for (double b = -half; b <= half; b += 0.02 * M_PI / 180)
+		{
+			const double a = view + M_PI + b;
+			const Eigen::Vector2d dir(std::cos(a), std::sin(a));
+			const double bb = o.dot(dir), cc = o.squaredNorm() - r * r;
+			if (bb * bb - cc < 0) continue;
+			p.push_back(o + (-bb - std::sqrt(bb * bb - cc) + g(rng)) * dir +
+			            0.03 * o / range);
+			d.push_back(dir);
+			seg.push_back(uint32_t(s + 1));
+		}
+	}
+	TreeOptions o;
+	const auto u = fitCircleRobust(p, opts());
+	ASSERT_TRUE(u.ok);
+	const double gate = std::max(4 * u.scale_m, 2 * o.ransac_inlier_m);
+	const auto f = fitDbhSegments(p, d, seg, u.circle, gate, o, 0.5 * r, 2 * r);
+	ASSERT_TRUE(f.ok);
+	std::printf(
+	    "fitDbhSegments: union r %.1f mm, segments r %.1f mm (true %.1f)\n",
+	    1e3 * u.circle.radius_m, 1e3 * f.circle.radius_m, 1e3 * r);
+	EXPECT_GT(u.circle.radius_m - r, 0.015);
+	EXPECT_NEAR(f.circle.radius_m, r, 0.0025);
+	EXPECT_LT(f.rmse_m, 0.02);
+	const std::vector<uint32_t> one(p.size(), 5);
+	const auto f1 =
+	    fitDbhSegments(p, d, one, u.circle, gate, o, 0.5 * r, 2 * r);
+	ASSERT_TRUE(f1.ok);
+	EXPECT_GT(f1.circle.radius_m - r, 0.015);
+	// Mismatched sizes are refused.
+	EXPECT_FALSE(fitDbhSegments(p, d, std::vector<uint32_t>(3, 1), u.circle,
+	                            gate, o, 0.5 * r, 2 * r)
+	                 .ok);
 }
 
 TEST(CircleFit, FullArcAndBranchStub)

@@ -250,6 +250,131 @@ bool refineCircleAlongRays(const Points2D& p, const Points2D& dir, Circle& c,
 	return x.allFinite() && x[2] > 0;
 }
 
+bool refineCircleSegments(const Points2D& p, const Points2D& dir,
+                          const std::vector<uint32_t>& segment,
+                          double shift_sigma_m, Circle& c, Points2D* shifts,
+                          double min_scale_m, int max_iterations)
+{
+	const size_t n = p.size();
+	if (dir.size() != n || segment.size() != n || n < 3 || !(shift_sigma_m > 0))
+		return false;
+	// Dense segment indices 0..G-1 (in order of first appearance).
+	std::vector<uint32_t> ids(segment);
+	std::sort(ids.begin(), ids.end());
+	ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
+	const size_t G = ids.size();
+	std::vector<size_t> g_of(n);
+	for (size_t i = 0; i < n; i++)
+		g_of[i] = size_t(std::lower_bound(ids.begin(), ids.end(), segment[i]) -
+		                 ids.begin());
+	const int m = 3 + 2 * int(G);
+	Eigen::VectorXd x = Eigen::VectorXd::Zero(m);
+	x << c.centre.x(), c.centre.y(), c.radius_m, Eigen::VectorXd::Zero(2 * G);
+	// Residual of point i: along its ray if known (and the ray hits the
+	// segment's circle), else orthogonal; J by (cx, cy, r) (the shift of
+	// its segment has the centre's derivatives). false: a missed ray.
+	auto residual =
+	    [&](const Eigen::VectorXd& v, size_t i, double& r, Eigen::Vector3d& J)
+	{
+		const size_t g = g_of[i];
+		const Circle cg{{v[0] + v[3 + 2 * g], v[1] + v[4 + 2 * g]}, v[2]};
+		if (dir[i].squaredNorm() > 0)
+			return rayResidual(p[i], dir[i], cg, r, J);
+		const Eigen::Vector2d d = p[i] - cg.centre;
+		const double dn = std::max(d.norm(), 1e-12);
+		r = dn - cg.radius_m;
+		J << -d.x() / dn, -d.y() / dn, -1.0;
+		return true;
+	};
+	const double inv_s2 = 1 / (shift_sigma_m * shift_sigma_m);
+	// Cost at a fixed scale s: Tukey on the points (a missed ray costs the
+	// maximum) plus the Gaussian prior on the shifts in the same units.
+	auto cost = [&](const Eigen::VectorXd& v, double s)
+	{
+		double sum = 0, r;
+		Eigen::Vector3d J;
+		for (size_t i = 0; i < n; i++)
+			sum += residual(v, i, r, J) ? tukeyRho(r, s) : tukeyRho(1e9, s);
+		return sum + 0.5 * s * s * inv_s2 * v.tail(2 * G).squaredNorm();
+	};
+	double lambda = 1e-3;
+	std::vector<double> r(n);
+	std::vector<char> ok(n);
+	std::vector<Eigen::Vector3d, Eigen::aligned_allocator<Eigen::Vector3d>> Js(
+	    n);
+	for (int it = 0; it < max_iterations; it++)
+	{
+		std::vector<double> good;
+		for (size_t i = 0; i < n; i++)
+		{
+			ok[i] = residual(x, i, r[i], Js[i]);
+			if (ok[i]) good.push_back(r[i]);
+		}
+		if (good.size() < 3) return false;
+		const double s = madScale(good, min_scale_m);
+		Eigen::MatrixXd H = Eigen::MatrixXd::Zero(m, m);
+		Eigen::VectorXd g = Eigen::VectorXd::Zero(m);
+		for (size_t i = 0; i < n; i++)
+		{
+			if (!ok[i]) continue;
+			const double w = tukeyWeight(r[i], s);
+			if (w == 0) continue;
+			// Parameters touched: cx, cy, r and the segment's shift.
+			const int k = 3 + 2 * int(g_of[i]);
+			const Eigen::Vector3d& J = Js[i];
+			const int idx[5] = {0, 1, 2, k, k + 1};
+			const double Jf[5] = {J[0], J[1], J[2], J[0], J[1]};
+			for (int a = 0; a < 5; a++)
+			{
+				g[idx[a]] += w * Jf[a] * r[i];
+				for (int b = 0; b < 5; b++)
+					H(idx[a], idx[b]) += w * Jf[a] * Jf[b];
+			}
+		}
+		const double prior = s * s * inv_s2;
+		for (int k = 3; k < m; k++)
+		{
+			H(k, k) += prior;
+			g[k] += prior * x[k];
+		}
+		const double c0 = cost(x, s);
+		bool improved = false;
+		for (int tries = 0; tries < 10 && !improved; tries++)
+		{
+			Eigen::MatrixXd Hd = H;
+			Hd.diagonal() *= (1 + lambda);
+			const Eigen::VectorXd step = Hd.ldlt().solve(-g);
+			if (!step.allFinite()) return false;
+			const Eigen::VectorXd xn = x + step;
+			if (!(xn[2] > 0))
+			{
+				lambda *= 10;
+				continue;
+			}
+			if (cost(xn, s) <= c0)
+			{
+				const double dx = step.norm();
+				x = xn;
+				lambda = std::max(lambda / 10, 1e-9);
+				improved = true;
+				if (dx < 1e-9) it = max_iterations;
+			}
+			else
+				lambda *= 10;
+		}
+		if (!improved) break;
+	}
+	if (!x.allFinite() || !(x[2] > 0)) return false;
+	c = Circle{{x[0], x[1]}, x[2]};
+	if (shifts)
+	{
+		shifts->assign(n, Eigen::Vector2d::Zero());
+		for (size_t i = 0; i < n; i++)
+			(*shifts)[i] = x.segment<2>(3 + 2 * g_of[i]);
+	}
+	return true;
+}
+
 double arcCoverageDeg(const Points2D& p, const Circle& c, double max_residual_m,
                       double bin_deg)
 {

@@ -243,14 +243,103 @@ std::vector<StemSection> findSliceSections(const Points2D& xy, int slice_index,
 	return out;
 }
 
+CircleFitResult fitDbhSegments(const Points2D& p, const Points2D& dir,
+                               const std::vector<uint32_t>& segment,
+                               const Circle& c0, double gate_m,
+                               const TreeOptions& o, double rmin, double rmax)
+{
+	CircleFitResult res;
+	if (p.size() != dir.size() || p.size() != segment.size()) return res;
+	const size_t min_seg = std::max<size_t>(3, size_t(o.min_dbh_points) / 2);
+	Circle c = c0;
+	Points2D shift(p.size(), Eigen::Vector2d::Zero());
+	Points2D q, qd, q_shift;
+	for (int round = 0; round < 2; round++)
+	{
+		// Points within the gate of their segment's (shifted) circle.
+		std::vector<size_t> idx;
+		for (size_t i = 0; i < p.size(); i++)
+			if (std::abs((p[i] - c.centre - shift[i]).norm() - c.radius_m) <=
+			    gate_m)
+				idx.push_back(i);
+		std::vector<uint32_t> ids;
+		for (size_t i : idx) ids.push_back(segment[i]);
+		std::sort(ids.begin(), ids.end());
+		std::vector<uint32_t> keep;  // segments with enough points
+		for (size_t a = 0; a < ids.size();)
+		{
+			size_t b = a;
+			while (b < ids.size() && ids[b] == ids[a]) b++;
+			if (b - a >= min_seg) keep.push_back(ids[a]);
+			a = b;
+		}
+		if (keep.empty()) return res;
+		q.clear(), qd.clear();
+		std::vector<uint32_t> qs;
+		std::vector<size_t> qi;
+		for (size_t i : idx)
+			if (std::binary_search(keep.begin(), keep.end(), segment[i]))
+				q.push_back(p[i]), qd.push_back(dir[i]),
+				    qs.push_back(segment[i]), qi.push_back(i);
+		Circle cn = c;
+		if (!refineCircleSegments(q, qd, qs, o.dbh_segment_shift_m, cn,
+		                          &q_shift))
+			return res;
+		c = cn;
+		// Every point gets its segment's shift (0 for dropped segments).
+		std::vector<std::pair<uint32_t, Eigen::Vector2d>> by_seg;
+		for (size_t j = 0; j < qi.size(); j++)
+			if (by_seg.empty() || by_seg.back().first != qs[j])
+				by_seg.emplace_back(qs[j], q_shift[j]);
+		std::sort(by_seg.begin(), by_seg.end(),
+		          [](const auto& a, const auto& b)
+		          { return a.first < b.first; });
+		for (size_t i = 0; i < p.size(); i++)
+		{
+			const auto it = std::lower_bound(
+			    by_seg.begin(), by_seg.end(), segment[i],
+			    [](const auto& a, uint32_t v) { return a.first < v; });
+			shift[i] = it != by_seg.end() && it->first == segment[i]
+			               ? it->second
+			               : Eigen::Vector2d::Zero();
+		}
+		// Second round: gate at 4 robust scales of the aligned points.
+		std::vector<double> r;
+		for (size_t j = 0; j < q.size(); j++)
+			r.push_back(
+			    std::abs((q[j] - c.centre - q_shift[j]).norm() - c.radius_m));
+		std::nth_element(r.begin(), r.begin() + r.size() / 2, r.end());
+		gate_m = std::max(4 * 1.4826 * r[r.size() / 2], 2 * o.ransac_inlier_m);
+	}
+	if (c.radius_m < rmin || c.radius_m > rmax ||
+	    std::abs(c.radius_m - c0.radius_m) > 0.25 * c0.radius_m ||
+	    (c.centre - c0.centre).norm() > 0.5 * c0.radius_m)
+		return res;
+	Points2D aligned;
+	for (size_t j = 0; j < q.size(); j++) aligned.push_back(q[j] - q_shift[j]);
+	CircleFitOptions f;
+	f.min_radius_m = rmin;
+	f.max_radius_m = rmax;
+	f.arc_bin_deg = o.arc_bin_deg;
+	return evaluateCircle(aligned, c, f);
+}
+
 std::vector<DetectedTree> detectTrees(
     const std::vector<Eigen::Vector3d>& pts, const TerrainModel& terrain,
     const TreeOptions& o, TreeDetectionStats* stats,
-    const std::vector<Eigen::Vector3f>* view_dirs)
+    const std::vector<Eigen::Vector3f>* view_dirs,
+    const SegmentedPoints* segments)
 {
 	if (view_dirs && view_dirs->size() != pts.size())
 		throw std::invalid_argument(
 		    "detectTrees: view_dirs must hold one direction per point");
+	if (segments && (segments->dirs.size() != segments->pts.size() ||
+	                 segments->segment.size() != segments->pts.size() ||
+	                 (!segments->range_class.empty() &&
+	                  segments->range_class.size() != segments->pts.size())))
+		throw std::invalid_argument(
+		    "detectTrees: segments must hold a direction and a segment per "
+		    "point");
 	TreeDetectionStats st;
 	std::vector<double> hag(pts.size());
 	for (size_t i = 0; i < pts.size(); i++)
@@ -397,6 +486,29 @@ std::vector<DetectedTree> detectTrees(
 		grid[int((pts[i].x() - lo_xy.x()) / cell) +
 		     gx * int((pts[i].y() - lo_xy.y()) / cell)]
 		    .push_back(uint32_t(i));
+	// The segmented breast-height points by 1 m cell, likewise.
+	Eigen::Vector2d s_lo(1e300, 1e300), s_hi(-1e300, -1e300);
+	int sgx = 0, sgy = 0;
+	std::vector<std::vector<uint32_t>> s_grid;
+	std::vector<double> s_hag;
+	if (segments && o.dbh_segment_scans > 0 && !segments->pts.empty())
+	{
+		for (const auto& p : segments->pts)
+			s_lo = s_lo.cwiseMin(p.head<2>()),
+			s_hi = s_hi.cwiseMax(p.head<2>());
+		sgx = int((s_hi.x() - s_lo.x()) / cell) + 1;
+		sgy = int((s_hi.y() - s_lo.y()) / cell) + 1;
+		s_grid.resize(size_t(sgx) * sgy);
+		s_hag.resize(segments->pts.size());
+		for (size_t i = 0; i < segments->pts.size(); i++)
+		{
+			const auto& p = segments->pts[i];
+			s_hag[i] = terrain.heightAboveGround(p);
+			s_grid[int((p.x() - s_lo.x()) / cell) +
+			       sgx * int((p.y() - s_lo.y()) / cell)]
+			    .push_back(uint32_t(i));
+		}
+	}
 	std::vector<uint32_t> near_idx;
 	for (const auto& c : unique)
 	{
@@ -520,6 +632,78 @@ std::vector<DetectedTree> detectTrees(
 			    cr.radius_m >= fo.min_radius_m &&
 			    cr.radius_m <= fo.max_radius_m)
 				f = evaluateCircle(near, cr, fo);
+		}
+		// Multi-view: the breast-height points of every time segment, one
+		// shift per segment (pose errors between segments would blur the
+		// ring; a blurred or doubled ring fits one circle too large).
+		if (f.ok && !s_grid.empty())
+		{
+			Points2D sp, sd;
+			std::vector<uint32_t> ss;
+			std::vector<uint8_t> sc;
+			const double reach_s = 1.6 * r_est + 0.1;
+			for (int iy =
+			         std::max(0, int((xy0.y() - reach_s - s_lo.y()) / cell));
+			     iy <=
+			     std::min(sgy - 1, int((xy0.y() + reach_s - s_lo.y()) / cell));
+			     iy++)
+				for (int ix = std::max(
+				         0, int((xy0.x() - reach_s - s_lo.x()) / cell));
+				     ix <= std::min(sgx - 1,
+				                    int((xy0.x() + reach_s - s_lo.x()) / cell));
+				     ix++)
+					for (const uint32_t i : s_grid[ix + sgx * iy])
+					{
+						if (std::abs(s_hag[i] - o.dbh_height_m) >
+						    o.dbh_segment_band_half_m)
+							continue;
+						const Eigen::Vector3d d = segments->pts[i] - p0;
+						const Eigen::Vector2d q(d.dot(e1), d.dot(e2));
+						if (std::abs((q - f.circle.centre).norm() -
+						             f.circle.radius_m) >
+						    0.5 * f.circle.radius_m)
+							continue;
+						Eigen::Vector2d v = Eigen::Vector2d::Zero();
+						if (o.dbh_along_rays)
+						{
+							const Eigen::Vector3d w =
+							    segments->dirs[i].cast<double>();
+							v = Eigen::Vector2d(w.dot(e1), w.dot(e2));
+							v = v.norm() > 0.5 ? Eigen::Vector2d(v.normalized())
+							                   : Eigen::Vector2d::Zero();
+						}
+						sp.push_back(q), sd.push_back(v);
+						ss.push_back(segments->segment[i]);
+						sc.push_back(segments->range_class.empty()
+						                 ? 0
+						                 : segments->range_class[i]);
+					}
+			const double gate = std::max(4 * f.scale_m, 2 * o.ransac_inlier_m);
+			// The nearest range classes that see enough of the stem: pose
+			// errors (rotations) move far points most.
+			uint8_t max_class = 0;
+			for (const uint8_t c : sc) max_class = std::max(max_class, c);
+			for (uint8_t k = 0; k < max_class; k++)
+			{
+				Points2D near_k;
+				for (size_t j = 0; j < sp.size(); j++)
+					if (sc[j] <= k) near_k.push_back(sp[j]);
+				if (near_k.size() >= 2 * size_t(o.min_dbh_points) &&
+				    arcCoverageDeg(near_k, f.circle, gate, o.arc_bin_deg) >=
+				        o.good_arc_deg)
+				{
+					max_class = k;
+					break;
+				}
+			}
+			size_t w = 0;
+			for (size_t j = 0; j < sp.size(); j++)
+				if (sc[j] <= max_class)
+					sp[w] = sp[j], sd[w] = sd[j], ss[w] = ss[j], w++;
+			sp.resize(w), sd.resize(w), ss.resize(w);
+			const auto g = fitDbhSegments(sp, sd, ss, f.circle, gate, o,
+			                              fo.min_radius_m, fo.max_radius_m);
+			if (g.ok) f = g;
 		}
 		if (f.ok)
 		{

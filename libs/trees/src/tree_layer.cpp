@@ -61,7 +61,7 @@ void TreeLayer::SortedVoxels::compact(size_t max_pending)
 	for (const auto& q : pending_)
 	{
 		const uint64_t k = keyOf(q.p);
-		add.push_back({k, q.p - centreOf(k), q.dir, 1});
+		add.push_back({k, q.p - centreOf(k), q.dir, 1, q.segment});
 	}
 	pending_.clear();
 	pending_.shrink_to_fit();
@@ -79,7 +79,7 @@ void TreeLayer::SortedVoxels::transform(const Eigen::Isometry3f& T)
 		const Eigen::Vector3f c = T * centroid(v);
 		const uint64_t k = keyOf(c);
 		moved.push_back({k, (c - centreOf(k)) * float(v.count),
-		                 T.linear() * v.dir, v.count});
+		                 T.linear() * v.dir, v.count, v.segment});
 	}
 	voxels_.clear();
 	mergeIn(moved);
@@ -109,13 +109,15 @@ void TreeLayer::SortedVoxels::reload(const core::SpillFile& f)
 void TreeLayer::SortedVoxels::mergeIn(std::vector<Voxel>& add)
 {
 	changed_ = true;
-	std::sort(add.begin(), add.end(),
-	          [](const Voxel& a, const Voxel& b) { return a.key < b.key; });
+	auto less = [](const Voxel& a, const Voxel& b)
+	{ return a.key != b.key ? a.key < b.key : a.segment < b.segment; };
+	std::sort(add.begin(), add.end(), less);
 	std::vector<Voxel> merged;
 	merged.reserve(voxels_.size() + add.size());
 	auto push = [&](const Voxel& v)
 	{
-		if (!merged.empty() && merged.back().key == v.key)
+		if (!merged.empty() && merged.back().key == v.key &&
+		    merged.back().segment == v.segment)
 		{
 			merged.back().sum += v.sum;
 			merged.back().dir += v.dir;
@@ -127,7 +129,7 @@ void TreeLayer::SortedVoxels::mergeIn(std::vector<Voxel>& add)
 	size_t i = 0, j = 0;
 	while (i < voxels_.size() || j < add.size())
 		if (j == add.size() ||
-		    (i < voxels_.size() && voxels_[i].key <= add[j].key))
+		    (i < voxels_.size() && !less(add[j], voxels_[i])))
 			push(voxels_[i++]);
 		else
 			push(add[j++]);
@@ -225,7 +227,26 @@ void TreeLayer::addScan(const std::vector<Eigen::Vector3f>& pts,
 		if (!inserted && p.z() < it->second.z()) it->second = p;
 		where[i] = {last_col, &it->second};
 	}
-	// Pass 2: the stem band above the lowest point of the cell so far.
+	// Pass 2: the stem band above the lowest point of the cell so far;
+	// near breast height tagged with the scan's time segment (the cell
+	// minimum is above the ground until the ground is seen: a wide band).
+	// Tag: time segment << 2 | range class (never 0); 0: not kept apart.
+	const bool tagged = o_.dbh_segment_scans > 0;
+	const uint32_t segment =
+	    tagged
+	        ? uint32_t(1 + (stats_.scans - 1) / uint64_t(o_.dbh_segment_scans))
+	        : 0;
+	auto tag = [&](const Eigen::Vector3f& p)
+	{
+		const double r = (p.head<2>() - s2).norm();
+		const uint32_t c =
+		    o_.dbh_range_step_m > 0
+		        ? uint32_t(std::min(3.0, std::floor(r / o_.dbh_range_step_m)))
+		        : 0;
+		return (segment << 2) | c;
+	};
+	const double seg_lo = o_.dbh_height_m - o_.dbh_segment_band_half_m - 0.5,
+	             seg_hi = o_.dbh_height_m + o_.dbh_segment_band_half_m + 0.5;
 	for (size_t i = 0; i < pts.size(); i++)
 	{
 		auto [col, low] = where[i];
@@ -236,7 +257,8 @@ void TreeLayer::addScan(const std::vector<Eigen::Vector3f>& pts,
 		const Eigen::Vector3f d = pts[i] - sensor.cast<float>();
 		const float n = d.norm();
 		resident(*col).add(
-		    pts[i], n > 0 ? Eigen::Vector3f(d / n) : Eigen::Vector3f::Zero());
+		    pts[i], n > 0 ? Eigen::Vector3f(d / n) : Eigen::Vector3f::Zero(),
+		    tagged && h >= seg_lo && h <= seg_hi ? tag(pts[i]) : 0);
 	}
 	stats_.stored_voxels = 0;
 	for (auto& [k, c] : cols_)
@@ -293,6 +315,7 @@ void TreeLayer::detectColumn(const ColumnKey& k, const map::CForestMap& map)
 	};
 	std::vector<Eigen::Vector3d> pts, ground;
 	std::vector<Eigen::Vector3f> dirs;  // per point of pts; 0: unknown
+	SegmentedPoints seg;                // breast-height voxels per time segment
 	for (int dx = -1; dx <= 1; dx++)
 		for (int dy = -1; dy <= 1; dy++)
 		{
@@ -308,6 +331,17 @@ void TreeLayer::detectColumn(const ColumnKey& k, const map::CForestMap& map)
 			    {
 				    if (inside(c.x(), c.y(), margin))
 					    pts.push_back(c.cast<double>()), dirs.push_back(d);
+			    },
+			    [&](const Eigen::Vector3f& c, const Eigen::Vector3f& d,
+			        uint32_t s)
+			    {
+				    if (inside(c.x(), c.y(), margin))
+				    {
+					    seg.pts.push_back(c.cast<double>());
+					    seg.dirs.push_back(d);
+					    seg.segment.push_back(s >> 2);
+					    seg.range_class.push_back(uint8_t(s & 3));
+				    }
 			    });
 		}
 	std::vector<map::TreeRecord> found;
@@ -336,7 +370,8 @@ void TreeLayer::detectColumn(const ColumnKey& k, const map::CForestMap& map)
 				if (dtm.heightAboveGround(p) > band_top)
 					pts.push_back(p), dirs.push_back(Eigen::Vector3f::Zero());
 			}
-		for (const auto& t : detectTrees(pts, dtm, o_, nullptr, &dirs))
+		for (const auto& t : detectTrees(pts, dtm, o_, nullptr, &dirs,
+		                                 seg.pts.empty() ? nullptr : &seg))
 			if (t.record.x >= x0 && t.record.x < x0 + column_m_ &&
 			    t.record.y >= y0 && t.record.y < y0 + column_m_)
 				found.push_back(t.record);

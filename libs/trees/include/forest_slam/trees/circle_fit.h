@@ -74,6 +74,24 @@ CircleFitResult evaluateCircle(const Points2D& p, const Circle& c,
 bool refineCircleAlongRays(const Points2D& p, const Points2D& dir, Circle& c,
                            double min_scale_m = 0.002, int max_iterations = 50);
 
+/** Multi-view fit of one stem seen in several time segments of a SLAM run,
+ * each with its own small pose error: the points of segment g lie on the
+ * circle (centre + s_g, r) with a common radius and a segment shift s_g
+ * under a Gaussian prior of `shift_sigma_m` per axis. A pose error then
+ * moves a segment's ring instead of blurring the union (a blurred or doubled
+ * ring makes one circle too large). Residuals along the rays where `dir` is
+ * non-zero (as refineCircleAlongRays; a missed ray costs the Tukey maximum),
+ * orthogonal elsewhere; Tukey-biweight IRLS with MAD scale and Levenberg–
+ * Marquardt, started from `c` with zero shifts. `segment`: any ids, one per
+ * point. On success `c` is the consensus circle and `shifts` (optional)
+ * receives each point's segment shift. Returns false for fewer than 3
+ * points, sizes that differ, shift_sigma_m <= 0 or divergence. */
+bool refineCircleSegments(const Points2D& p, const Points2D& dir,
+                          const std::vector<uint32_t>& segment,
+                          double shift_sigma_m, Circle& c,
+                          Points2D* shifts = nullptr,
+                          double min_scale_m = 0.002, int max_iterations = 50);
+
 /** Degrees of the circle seen by `p`: bins of `bin_deg` holding a point
  * within `max_residual_m` of the circle. */
 double arcCoverageDeg(const Points2D& p, const Circle& c, double max_residual_m,

@@ -55,14 +55,46 @@ struct TreeDetectionStats
 	       rejected_duplicate = 0;
 };
 
+/** Points near breast height kept per time segment of a SLAM run (the
+ * same surface seen in two segments is two points), for the multi-view DBH
+ * fit. `dirs` as detectTrees' view_dirs; `segment`: any id per point. */
+struct SegmentedPoints
+{
+	std::vector<Eigen::Vector3d> pts;
+	std::vector<Eigen::Vector3f> dirs;
+	std::vector<uint32_t> segment;
+	/** Optional: 0 (nearest) to 3, the horizontal range class of the
+	 * scans that saw the point (TreeOptions::dbh_range_step_m). */
+	std::vector<uint8_t> range_class;
+};
+
 /** Trees in `pts`, ids 1..N ordered by x then y. `view_dirs` (optional,
  * one per point): the mean viewing direction (sensor → point) of each
  * point, zero if unknown; where known, the DBH circle is refined with the
- * range noise along the rays (refineCircleAlongRays). */
+ * range noise along the rays (refineCircleAlongRays). `segments`
+ * (optional): the breast-height points per time segment; if they hold two
+ * or more segments near a stem, its DBH circle is finally refined on them
+ * with one shift per segment (refineCircleSegments, prior
+ * o.dbh_segment_shift_m). */
 std::vector<DetectedTree> detectTrees(
     const std::vector<Eigen::Vector3d>& pts, const TerrainModel& terrain,
     const TreeOptions& o, TreeDetectionStats* stats = nullptr,
-    const std::vector<Eigen::Vector3f>* view_dirs = nullptr);
+    const std::vector<Eigen::Vector3f>* view_dirs = nullptr,
+    const SegmentedPoints* segments = nullptr);
+
+/** The multi-view refinement of a DBH circle: the band points of `seg`
+ * (already in the circle's 2D frame: `p`, unit directions or zero `dir`,
+ * `segment`) within a residual gate of `c` are grouped by segment
+ * (segments with fewer than max(3, min_dbh_points/2) points dropped) and
+ * refineCircleSegments runs twice (the second time on the points within 4
+ * robust scales of their segment's shifted circle). Returns the evaluation
+ * of the consensus circle on the aligned points, or !ok (no segment left,
+ * divergence, or a result outside [rmin, rmax] or more than 25 % from `c`).
+ * Exposed for tests. */
+CircleFitResult fitDbhSegments(const Points2D& p, const Points2D& dir,
+                               const std::vector<uint32_t>& segment,
+                               const Circle& c, double gate_m,
+                               const TreeOptions& o, double rmin, double rmax);
 
 /** Stem sections of one slice (exposed for tests and diagnostics). */
 std::vector<StemSection> findSliceSections(const Points2D& slice_xy,

@@ -22,6 +22,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <type_traits>
 #include <unordered_map>
 #include <vector>
 
@@ -97,9 +98,12 @@ class TreeLayer
 	{
 	   public:
 		explicit SortedVoxels(double voxel_m = 0.02) : voxel_m_(voxel_m) {}
-		void add(const Eigen::Vector3f& p, const Eigen::Vector3f& dir)
+		/** `segment`: the time segment of the point's scan, or 0 (merged
+		 * with every segment's voxel of the cell). */
+		void add(const Eigen::Vector3f& p, const Eigen::Vector3f& dir,
+		         uint32_t segment = 0)
 		{
-			pending_.push_back({p, dir});
+			pending_.push_back({p, dir, segment});
 		}
 		/** Merges the buffer if it holds more than `max_pending` points. */
 		void compact(size_t max_pending = 0);
@@ -108,12 +112,32 @@ class TreeLayer
 			return (spilled_ ? spill_count_ : voxels_.size()) + pending_.size();
 		}
 		/** Calls f(centroid, mean viewing direction, not normalised) for
-		 * every voxel (compact() first). */
-		template <class F>
-		void forEach(F&& f) const
+		 * every voxel, the time segments of a cell merged (compact()
+		 * first); and seg(centroid, direction, segment) for every voxel of
+		 * a segment != 0, if given. */
+		template <class F, class S = std::nullptr_t>
+		void forEach(F&& f, S&& seg = nullptr) const
 		{
-			for (const auto& v : voxels_)
-				f(centroid(v), Eigen::Vector3f(v.dir / float(v.count)));
+			for (size_t i = 0; i < voxels_.size();)
+			{
+				Eigen::Vector3f sum = Eigen::Vector3f::Zero(),
+				                dir = Eigen::Vector3f::Zero();
+				uint32_t count = 0;
+				const uint64_t key = voxels_[i].key;
+				for (; i < voxels_.size() && voxels_[i].key == key; i++)
+				{
+					const Voxel& v = voxels_[i];
+					sum += v.sum, dir += v.dir, count += v.count;
+					if constexpr (!std::is_same_v<std::decay_t<S>,
+					                              std::nullptr_t>)
+						if (v.segment != 0)
+							seg(centroid(v),
+							    Eigen::Vector3f(v.dir / float(v.count)),
+							    v.segment);
+				}
+				f(Eigen::Vector3f(centreOf(key) + sum / float(count)),
+				  Eigen::Vector3f(dir / float(count)));
+			}
 		}
 		void transform(const Eigen::Isometry3f& T);
 		/** Moves the voxels to `f` (compact() first); a set read back and
@@ -139,10 +163,13 @@ class TreeLayer
 			Eigen::Vector3f sum;  ///< of offsets from the voxel centre
 			Eigen::Vector3f dir;  ///< sum of unit viewing directions
 			uint32_t count;
+			uint32_t
+			    segment;  ///< time segment (0: none); sorted by (key, segment)
 		};
 		struct Pending
 		{
 			Eigen::Vector3f p, dir;
+			uint32_t segment;
 		};
 		double voxel_m_;
 		std::vector<Voxel> voxels_;  ///< sorted by key

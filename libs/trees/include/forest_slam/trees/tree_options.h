@@ -59,6 +59,24 @@ struct TreeOptions : public mrpt::config::CLoadableOptions
 	/** Refine the DBH circle with range noise along the viewing rays where
 	 * they are known (the tree layer of a SLAM run). */
 	bool dbh_along_rays = true;
+	/** Tree layer of a SLAM run, multi-view DBH (off by default: it did
+	 * not help on the odometry maps, doc/trees.md): stem-band voxels near
+	 * breast height are kept per time segment of this many scans (0: off)
+	 * and per range class, and the DBH circle is finally fitted with one
+	 * small shift per segment (refineCircleSegments), so pose errors
+	 * between segments do not blur the ring. */
+	int dbh_segment_scans = 0;
+	/** Prior (1σ per axis) on a segment's shift. */
+	double dbh_segment_shift_m = 0.05;
+	/** Multi-view DBH: breast-height voxels are also kept per class of
+	 * horizontal range from the sensor ([0, s), [s, 2s), [2s, 3s),
+	 * beyond); the DBH is fitted on the nearest classes that cover
+	 * good_arc_deg of the stem (rotation errors of the poses move far
+	 * points most). 0: one class. */
+	double dbh_range_step_m = 6;
+	/** Half height of the band of the multi-view fit (narrower than
+	 * dbh_band_half_m: a wrong lean estimate shears a tall band). */
+	double dbh_segment_band_half_m = 0.15;
 	int ransac_iterations = 300;
 	double ransac_inlier_m = 0.015;
 	uint32_t seed = 1;
