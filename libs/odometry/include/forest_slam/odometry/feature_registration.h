@@ -46,7 +46,7 @@ struct RegistrationOptions : public mrpt::config::CLoadableOptions
 	/** IMU gravity prior on roll and pitch (when the caller gives "up"):
 	 * the accelerometer sees gravity, so roll/pitch cannot drift [deg]. 0
 	 * disables. */
-	double gravity_sigma_deg = 0.5;
+	double gravity_sigma_deg = 3.0;
 	/** Converged when the update is below these. */
 	double converged_translation_m = 1e-4;
 	double converged_rotation_rad = 1e-5;
