@@ -75,6 +75,50 @@ Eigen::Quaterniond ImuBuffer::rotationBetween(double t0, double t1) const
 	return q.normalized();
 }
 
+AccelIntegral ImuBuffer::integrateAcceleration(
+    double t0, double t1, const Eigen::Vector3d& gravity_t0) const
+{
+	AccelIntegral out;
+	if (samples_.size() < 2 || !(t1 > t0)) return out;
+	auto it =
+	    std::upper_bound(samples_.begin(), samples_.end(), t0,
+	                     [](double t, const Entry& e) { return t < e.s.t_s; });
+	if (it != samples_.begin()) --it;
+	const Eigen::Vector3d bias = samples_.back().bias;
+	Eigen::Quaterniond q = Eigen::Quaterniond::Identity();  // R_t0_u
+	// Specific force of a sample blended to time u inside [a, b].
+	const auto force = [](const ImuSample& a, const ImuSample& b, double u)
+	{
+		const double w = (u - a.t_s) / (b.t_s - a.t_s);
+		return ((1 - w) * a.acc + w * b.acc).eval();
+	};
+	Eigen::Vector3d v = Eigen::Vector3d::Zero(), acc_lo;
+	bool first = true;
+	for (; std::next(it) != samples_.end() && it->s.t_s < t1; ++it)
+	{
+		const auto& a = it->s;
+		const auto& b = std::next(it)->s;
+		const double lo = std::max(t0, a.t_s), hi = std::min(t1, b.t_s);
+		if (!(hi > lo)) continue;
+		const double h = hi - lo;
+		if (first) acc_lo = q * force(a, b, lo) + gravity_t0, first = false;
+		const Eigen::Vector3d dth = (0.5 * (a.gyro + b.gyro) - bias) * h;
+		const double ang = dth.norm();
+		if (ang > 1e-12)
+			q = q * Eigen::Quaterniond(Eigen::AngleAxisd(ang, dth / ang));
+		const Eigen::Vector3d acc_hi = q * force(a, b, hi) + gravity_t0;
+		// Trapezoid on a; exact double integral of the linear a in the step.
+		out.dp += v * h + h * h * (acc_lo / 3 + acc_hi / 6);
+		const Eigen::Vector3d dv = 0.5 * h * (acc_lo + acc_hi);
+		out.moment += h * (0.5 * ((lo - t0) * acc_lo + (hi - t0) * acc_hi));
+		v += dv;
+		acc_lo = acc_hi;
+	}
+	out.dv = v;
+	out.moment /= (t1 - t0);
+	return out;
+}
+
 bool ImuBuffer::attitudeAt(double t_s, Eigen::Quaterniond& q) const
 {
 	if (samples_.empty() || !filter_.initialised()) return false;

@@ -19,6 +19,7 @@ void OdometryOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 	FS_LOAD(c, s, degeneracy_ratio);
 	FS_LOAD(c, s, degenerate_hold_ratio);
 	FS_LOAD(c, s, async_map_insert);
+	FS_LOAD(c, s, imu_translation);
 	const std::string where = core::configOrigin(c) + ": [" + s + "] ";
 	if (prune_every_scans < 1)
 		throw core::ConfigError(where + "prune_every_scans must be >= 1");
@@ -38,6 +39,7 @@ void OdometryOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
 	c.write(s, "degeneracy_ratio", degeneracy_ratio);
 	c.write(s, "degenerate_hold_ratio", degenerate_hold_ratio);
 	c.write(s, "async_map_insert", async_map_insert);
+	c.write(s, "imu_translation", imu_translation);
 }
 
 LidarOdometry::LidarOdometry(const OdometryConfig& cfg, map::CForestMap& map)
@@ -78,6 +80,11 @@ Eigen::Isometry3d SweepMotion::at(double s) const
 		T.linear() = R_body_lidar.transpose() *
 		             imu->rotationBetween(t0_s, t0_s + s).toRotationMatrix() *
 		             R_body_lidar;
+	if (imu && accel)
+		T.translation() =
+		    R_body_lidar.transpose() *
+		    (v0_body * s +
+		     imu->integrateAcceleration(t0_s, t0_s + s, gravity_body).dp);
 	return T;
 }
 
@@ -214,6 +221,25 @@ OdometryStep LidarOdometry::processScan(const core::ScanPoints& scan)
 			    velocity_, last_period_s_, last_stamp_s_, stamp,
 			    [this](double a, double b) { return imuRotation(a, b); });
 		predicted = last_pose_ * delta;
+		// Accelerometer translation: the velocity at the last scan plus the
+		// integrated acceleration, for the prediction and for this sweep.
+		if (use_imu && cfg_.odometry.imu_translation && velocity_map_known_)
+		{
+			const Eigen::Vector3d g_map(0, 0,
+			                            -imu_->filter().options().gravity);
+			const Eigen::Matrix3d R_mb =
+			    last_pose_.linear() * R_body_lidar_.transpose();
+			const imu::AccelIntegral a = imu_->integrateAcceleration(
+			    last_stamp_s_, stamp, R_mb.transpose() * g_map);
+			predicted.translation() =
+			    last_pose_.translation() + velocity_map_ * dt + R_mb * a.dp;
+			const Eigen::Matrix3d R_mb_now =
+			    predicted.linear() * R_body_lidar_.transpose();
+			motion.accel = true;
+			motion.v0_body =
+			    R_mb_now.transpose() * (velocity_map_ + R_mb * a.dv);
+			motion.gravity_body = R_mb_now.transpose() * g_map;
+		}
 	}
 	Eigen::Vector3d up;
 	RegistrationPriors priors;
@@ -334,6 +360,21 @@ OdometryStep LidarOdometry::processScan(const core::ScanPoints& scan)
 	{
 		last_period_s_ = std::max(1e-3, stamp - last_stamp_s_);
 		velocity_ = last_pose_.inverse() * pose;
+		// Velocity at this scan: the mean over the interval plus what the
+		// accelerometer says changed since its middle (AccelIntegral).
+		velocity_map_known_ = use_imu && cfg_.odometry.imu_translation;
+		if (velocity_map_known_)
+		{
+			const Eigen::Vector3d g_map(0, 0,
+			                            -imu_->filter().options().gravity);
+			const Eigen::Matrix3d R_mb =
+			    last_pose_.linear() * R_body_lidar_.transpose();
+			const imu::AccelIntegral a = imu_->integrateAcceleration(
+			    last_stamp_s_, stamp, R_mb.transpose() * g_map);
+			velocity_map_ = (pose.translation() - last_pose_.translation()) /
+			                    last_period_s_ +
+			                R_mb * a.moment;
+		}
 	}
 	last_pose_ = pose;
 	last_stamp_s_ = stamp;

@@ -44,6 +44,7 @@ class AttitudeFilter
 {
    public:
 	explicit AttitudeFilter(const AttitudeOptions& o = {}) : o_(o) {}
+	const AttitudeOptions& options() const { return o_; }
 
 	/** One sample taken dt seconds after the previous one. The mean of the
 	 * first init_samples plausible accelerometer readings levels the filter

@@ -20,6 +20,20 @@ struct ImuSample
 	    Eigen::Vector3d::Zero();  ///< m/s^2 specific force, body frame
 };
 
+/** What the accelerometer says about the motion over [t0, t1], in the body
+ * frame at t0, with a(u) = R_t0_u f(u) + gravity_t0 the acceleration of the
+ * body (f the specific force, gravity_t0 the gravity vector in the t0
+ * frame): dv = integral of a, dp = double integral (the displacement at zero
+ * initial velocity), and moment = integral of a(u) (u - t0) du / (t1 - t0),
+ * which turns a mean velocity over the interval into the velocity at t1:
+ * v(t1) = (p(t1) - p(t0)) / (t1 - t0) + moment. */
+struct AccelIntegral
+{
+	Eigen::Vector3d dv = Eigen::Vector3d::Zero();
+	Eigen::Vector3d dp = Eigen::Vector3d::Zero();
+	Eigen::Vector3d moment = Eigen::Vector3d::Zero();
+};
+
 class ImuBuffer
 {
    public:
@@ -44,6 +58,13 @@ class ImuBuffer
 	 * (R_t0_t1), by integrating bias-corrected gyro rates. Requires covers().
 	 */
 	Eigen::Quaterniond rotationBetween(double t0_s, double t1_s) const;
+
+	/** Integrates the accelerometer over [t0, t1] (see AccelIntegral);
+	 * gravity_t0 is the gravity vector (pointing down, m/s^2) in the body
+	 * frame at t0. Trapezoid steps between samples, the rotation from the
+	 * gyro. Requires covers(). */
+	AccelIntegral integrateAcceleration(
+	    double t0_s, double t1_s, const Eigen::Vector3d& gravity_t0) const;
 
 	/** Gravity-aligned attitude (world <- body) from the filter at the
 	 * latest sample at or before t (or, before the filter levelled itself,

@@ -46,6 +46,13 @@ struct OdometryOptions : public mrpt::config::CLoadableOptions
 	/** Insert scans into the CForestMap on a worker thread while the next
 	 * scan is registered (MapInserter); the map's content is the same. */
 	bool async_map_insert = true;
+	/** Translation in the prediction and the deskew from the accelerometer
+	 * (velocity at the scan from the last two poses and the IMU, then the
+	 * specific force integrated with the gyro's rotation) instead of
+	 * constant velocity; needs use_imu. A handheld rig swings the lidar: its
+	 * velocity changes within a sweep, and a constant-velocity deskew tilted
+	 * each scan by up to 0.14 deg in roll (doc/odometry.md). */
+	bool imu_translation = true;
 
 	void loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 	                        const std::string& section) override;
@@ -90,6 +97,11 @@ struct SweepMotion
 	Eigen::Isometry3d end =
 	    Eigen::Isometry3d::Identity();    ///< constant velocity, whole sweep
 	const imu::ImuBuffer* imu = nullptr;  ///< rotation from the gyro when set
+	/** With imu set: the translation from the velocity at t0 and the
+	 * accelerometer (both in the body frame at t0) instead of `end`. */
+	bool accel = false;
+	Eigen::Vector3d v0_body = Eigen::Vector3d::Zero();
+	Eigen::Vector3d gravity_body = Eigen::Vector3d::Zero();
 	Eigen::Matrix3d R_body_lidar = Eigen::Matrix3d::Identity();
 	double t0_s = 0;  ///< absolute time of the first firing
 	double sweep_s = 0.1;
@@ -173,6 +185,10 @@ class LidarOdometry
 	Eigen::Isometry3d velocity_ =
 	    Eigen::Isometry3d::Identity();  ///< per scan period
 	double last_stamp_s_ = 0, last_period_s_ = 0.1;
+	/** Lidar velocity at last_stamp_s_ in the map frame (imu_translation),
+	 * valid when velocity_map_known_. */
+	Eigen::Vector3d velocity_map_ = Eigen::Vector3d::Zero();
+	bool velocity_map_known_ = false;
 	size_t scans_ = 0;
 };
 
