@@ -264,6 +264,12 @@ OdometryStep LidarOdometry::processScan(const core::ScanPoints& scan)
 
 	// 2-5. Deskew, ground, clusters, features.
 	const Prepared cur = prepare(scan, motion, predicted, step.timing);
+	if (keep_deskewed_)
+	{
+		last_deskewed_.clear();
+		last_deskewed_.reserve(cur.points.size());
+		for (const auto& p : cur.points) last_deskewed_.push_back(p.xyz);
+	}
 	step.edges = cur.edges.size();
 	step.planar = cur.planar.size();
 

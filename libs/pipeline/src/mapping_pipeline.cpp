@@ -55,7 +55,7 @@ MappingPipeline::MappingPipeline(const MappingConfig& cfg,
 	}
 	if (cfg_.trees.layer_enabled)
 		tree_layer_ = std::make_unique<trees::TreeLayer>(
-			cfg_.trees, cfg_.forest_map.submap_size_m);
+		    cfg_.trees, cfg_.forest_map.submap_size_m);
 	initBackEnd();
 }
 
@@ -74,7 +74,9 @@ void MappingPipeline::process(const mrpt::obs::CObservation::Ptr& obs)
 	if (label == o.lidar_label)
 	{
 		if (light_scans_ && processLightScan(*obs)) return;
-		if (auto rot = std::dynamic_pointer_cast<mrpt::obs::CObservationRotatingScan>(obs))
+		if (auto rot =
+		        std::dynamic_pointer_cast<mrpt::obs::CObservationRotatingScan>(
+		            obs))
 			processScan(*rot);
 		else if (auto vel = std::dynamic_pointer_cast<
 		             mrpt::obs::CObservationVelodyneScan>(obs))
@@ -91,9 +93,10 @@ void MappingPipeline::process(const mrpt::obs::CObservation::Ptr& obs)
 				stats_.scans_in++;
 				stats_.scans_unreadable++;
 				core::logOnce(core::LogLevel::Warn, "velodyne-unreadable",
-							  "Velodyne scan " + std::to_string(stats_.scans_in - 1) +
-								  " cannot be decoded: " + e.what() +
-								  " (skipped; further such scans counted)");
+				              "Velodyne scan " +
+				                  std::to_string(stats_.scans_in - 1) +
+				                  " cannot be decoded: " + e.what() +
+				                  " (skipped; further such scans counted)");
 				return;
 			}
 			processScan(converted);
@@ -368,6 +371,7 @@ void MappingPipeline::runOdometry(PendingScan& s)
 		if (cfg_.odometry.odometry.use_imu)
 			odometry_->setImu(&imu_buffer_,
 			                  s.sensor_pose.getRotationMatrix().asEigen());
+		odometry_->keepDeskewed(tree_layer_ != nullptr);
 	}
 	auto step = odometry_->processScan(s.pts);
 	backEndScan(s, step.pose);
@@ -380,7 +384,7 @@ void MappingPipeline::runOdometry(PendingScan& s)
 	    (!step.registered && odometry_->scansProcessed() > 1);
 	stats_.scans_imu += step.imu_used;
 	stats_.stage_ms.push_back(step.timing);
-	feedTreeLayerOdometry(std::move(s.pts));  // popped by the caller
+	feedTreeLayerOdometry(trajectory_.back().pose);
 }
 
 bool MappingPipeline::lidarPoseAt(double t_s, Eigen::Isometry3d& out) const
@@ -550,9 +554,9 @@ void MappingPipeline::processScan(
 	map_.insertFeatures(edge_map, planar_map);
 	trajectory_.push_back({stamp, scan_pose});
 	feedTreeLayer(edge_map, planar_map, scan_pose.translation());
-	outputs_.addScan(pts, trajectory_.back(), [&](double t, Eigen::Isometry3d& T) {
-		return po.deskew && lidarPoseAt(t, T);
-	});
+	outputs_.addScan(pts, trajectory_.back(),
+	                 [&](double t, Eigen::Isometry3d& T)
+	                 { return po.deskew && lidarPoseAt(t, T); });
 	stats_.scans_mapped++;
 }
 

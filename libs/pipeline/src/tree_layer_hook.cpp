@@ -33,44 +33,19 @@ void MappingPipeline::feedTreeLayer(const std::vector<Eigen::Vector3f>& a,
 	stats_.tree_ms.push_back(msSince(t0));
 }
 
-void MappingPipeline::feedTreeLayerOdometry(core::ScanPoints&& scan)
+void MappingPipeline::feedTreeLayerOdometry(const Eigen::Isometry3d& scan_pose)
 {
 	if (!tree_layer_) return;
-	// The odometry gives the pose at the scan's first firing; a scan's
-	// points are deskewed between its pose and the next scan's.
-	if (tree_pending_) flushPendingTreeScan();
-	tree_pending_ = std::move(scan);
-}
-
-void MappingPipeline::flushPendingTreeScan()
-{
-	if (!tree_pending_ || trajectory_.empty()) return;
+	// The odometry's own deskew (IMU rotation and accelerometer translation
+	// per firing column), placed with the scan's pose. Interpolating between
+	// consecutive scan poses instead missed the sway of a handheld rig
+	// within the sweep: stems 15 m away blurred by several cm (issue 7).
 	const auto t0 = std::chrono::steady_clock::now();
-	const core::ScanPoints& s = *tree_pending_;
-	Eigen::Isometry3d T0;
-	if (!core::interpolatePose(trajectory_, s.stamp_s, T0, 1e-6))
-		T0 = trajectory_.back().pose;
-	std::vector<Eigen::Vector3f> pts;
-	pts.reserve(s.points.size());
-	// One pose per firing column (at most a few thousand interpolations).
-	uint16_t last_col = 0;
-	Eigen::Isometry3f T = T0.cast<float>();
-	bool have = false;
-	for (const auto& p : s.points)
-	{
-		if (!have || p.column != last_col)
-		{
-			Eigen::Isometry3d Tp;
-			T = core::interpolatePose(trajectory_, s.stamp_s + p.t_s, Tp, 1e-6)
-			        ? Tp.cast<float>()
-			        : trajectory_.back().pose.cast<float>();
-			last_col = p.column;
-			have = true;
-		}
-		pts.push_back(T * Eigen::Vector3f(p.x, p.y, p.z));
-	}
-	const Eigen::Vector3d sensor = T0.translation();
-	tree_pending_.reset();
+	const Eigen::Isometry3f T = scan_pose.cast<float>();
+	const auto& local = odometry_->lastDeskewed();
+	std::vector<Eigen::Vector3f> pts(local.size());
+	for (size_t i = 0; i < local.size(); i++) pts[i] = T * local[i];
+	const Eigen::Vector3d sensor = scan_pose.translation();
 	tree_layer_->addScan(pts, sensor);
 	tree_layer_->update(sensor, map_);
 	stats_.tree_ms.push_back(msSince(t0));
@@ -79,7 +54,6 @@ void MappingPipeline::flushPendingTreeScan()
 void MappingPipeline::finishTreeLayer()
 {
 	if (!tree_layer_) return;
-	flushPendingTreeScan();
 	const auto t0 = std::chrono::steady_clock::now();
 	tree_layer_->finish(map_);
 	stats_.tree_finish_ms = msSince(t0);

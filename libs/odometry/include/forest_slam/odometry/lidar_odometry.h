@@ -152,6 +152,16 @@ class LidarOdometry
 	const ground::GroundLattice& groundLattice() const { return lattice_; }
 	const LocalMap& localMap() const { return local_map_; }
 	size_t scansProcessed() const { return scans_; }
+	/** Keep each scan's deskewed points (lastDeskewed): the tree layer
+	 * takes them rather than re-deskewing between scan poses, which would
+	 * miss the rotation and velocity changes within the sweep. */
+	void keepDeskewed(bool on) { keep_deskewed_ = on; }
+	/** The last scan's points deskewed to its first firing, in the lidar
+	 * frame (same motion as its registration); empty unless keepDeskewed. */
+	const std::vector<Eigen::Vector3f>& lastDeskewed() const
+	{
+		return last_deskewed_;
+	}
 
    private:
 	/** A deskewed scan with its labels and features. */
@@ -189,6 +199,8 @@ class LidarOdometry
 	 * valid when velocity_map_known_. */
 	Eigen::Vector3d velocity_map_ = Eigen::Vector3d::Zero();
 	bool velocity_map_known_ = false;
+	bool keep_deskewed_ = false;
+	std::vector<Eigen::Vector3f> last_deskewed_;
 	size_t scans_ = 0;
 };
 

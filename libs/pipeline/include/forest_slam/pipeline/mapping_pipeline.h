@@ -166,13 +166,10 @@ class MappingPipeline
 	// Tree layer hook (tree_layer_hook.cpp): every mapped scan's points in
 	// the map frame feed the layer, which updates map_'s trees.
 	std::unique_ptr<trees::TreeLayer> tree_layer_;
-	/** Odometry: a scan waits for the next pose to be deskewed between. */
-	std::optional<core::ScanPoints> tree_pending_;
 	void feedTreeLayer(const std::vector<Eigen::Vector3f>& a,
 					   const std::vector<Eigen::Vector3f>& b,
 					   const Eigen::Vector3d& sensor);
-	void feedTreeLayerOdometry(core::ScanPoints&& scan);
-	void flushPendingTreeScan();
+	void feedTreeLayerOdometry(const Eigen::Isometry3d& scan_pose);
 	void finishTreeLayer();
 	/** Lidar pose in the map frame at absolute time t (--poses files hold
 	 * lidar poses, like our own trajectory.tum, so they can be fed back). */
