@@ -71,6 +71,19 @@ Eigen::Matrix3d LidarOdometry::imuRotation(double t0_s, double t1_s) const
 	return R_body_lidar_.transpose() * Rb * R_body_lidar_;
 }
 
+Eigen::Vector3d LidarOdometry::gravityInMap() const
+{
+	return {0, 0, -imu_->filter().options().gravity};
+}
+
+imu::AccelIntegral LidarOdometry::accelSinceLastScan(
+    double stamp_s, Eigen::Matrix3d& R_map_body) const
+{
+	R_map_body = last_pose_.linear() * R_body_lidar_.transpose();
+	return imu_->integrateAcceleration(last_stamp_s_, stamp_s,
+	                                   R_map_body.transpose() * gravityInMap());
+}
+
 Eigen::Isometry3d SweepMotion::at(double s) const
 {
 	const double a = std::clamp(s / std::max(1e-6, sweep_s), 0.0, 1.0);
@@ -229,12 +242,8 @@ OdometryStep LidarOdometry::processScan(const core::ScanPoints& scan)
 		if (use_imu && cfg_.odometry.imu_translation && velocity_map_known_ &&
 		    !(dt > 1.5 * last_period_s_))
 		{
-			const Eigen::Vector3d g_map(0, 0,
-			                            -imu_->filter().options().gravity);
-			const Eigen::Matrix3d R_mb =
-			    last_pose_.linear() * R_body_lidar_.transpose();
-			const imu::AccelIntegral a = imu_->integrateAcceleration(
-			    last_stamp_s_, stamp, R_mb.transpose() * g_map);
+			Eigen::Matrix3d R_mb;
+			const imu::AccelIntegral a = accelSinceLastScan(stamp, R_mb);
 			predicted.translation() =
 			    last_pose_.translation() + velocity_map_ * dt + R_mb * a.dp;
 			const Eigen::Matrix3d R_mb_now =
@@ -242,7 +251,7 @@ OdometryStep LidarOdometry::processScan(const core::ScanPoints& scan)
 			motion.accel = true;
 			motion.v0_body =
 			    R_mb_now.transpose() * (velocity_map_ + R_mb * a.dv);
-			motion.gravity_body = R_mb_now.transpose() * g_map;
+			motion.gravity_body = R_mb_now.transpose() * gravityInMap();
 		}
 	}
 	Eigen::Vector3d up;
@@ -385,12 +394,8 @@ OdometryStep LidarOdometry::processScan(const core::ScanPoints& scan)
 		velocity_map_known_ = use_imu && cfg_.odometry.imu_translation && !held;
 		if (velocity_map_known_)
 		{
-			const Eigen::Vector3d g_map(0, 0,
-			                            -imu_->filter().options().gravity);
-			const Eigen::Matrix3d R_mb =
-			    last_pose_.linear() * R_body_lidar_.transpose();
-			const imu::AccelIntegral a = imu_->integrateAcceleration(
-			    last_stamp_s_, stamp, R_mb.transpose() * g_map);
+			Eigen::Matrix3d R_mb;
+			const imu::AccelIntegral a = accelSinceLastScan(stamp, R_mb);
 			velocity_map_ = (pose.translation() - last_pose_.translation()) /
 			                    last_period_s_ +
 			                R_mb * a.moment;

@@ -176,6 +176,12 @@ class LidarOdometry
 	void insert(const Prepared& s, const Eigen::Isometry3d& pose);
 	/** Lidar rotation from t0 to t1 from the IMU (lidar frame). */
 	Eigen::Matrix3d imuRotation(double t0_s, double t1_s) const;
+	/** Gravity vector of the map frame (z up) [m/s^2]. */
+	Eigen::Vector3d gravityInMap() const;
+	/** The accelerometer from the last scan to stamp_s, in the body frame
+	 * at the last scan; R_map_body is that frame's orientation. */
+	imu::AccelIntegral accelSinceLastScan(double stamp_s,
+	                                      Eigen::Matrix3d& R_map_body) const;
 
 	OdometryConfig cfg_;
 	LocalMap local_map_;
