@@ -89,13 +89,15 @@ TEST(TreeLayerSim, TinyScenarioWithGroundTruthPoses)
 	EXPECT_GE(d["tp"].asUInt(), 40u);
 	EXPECT_GE(d["recall"].asDouble(), 0.95);
 	EXPECT_GE(d["precision"].asDouble(), 0.95);
-	// Measured: DBH RMSE 1.24 cm, bias -0.19 cm, MAPE 4.7 %, position 1.2 cm
-	// (before the along-ray DBH fit and the 1.0-1.6 m band: 1.94 cm, -1.04
-	// cm, 7.7 %, 1.7 cm).
-	EXPECT_LE(j["dbh"]["rmse_m"].asDouble(), 0.016);
-	EXPECT_LE(std::abs(j["dbh"]["bias_m"].asDouble()), 0.006);
-	EXPECT_LE(j["dbh"]["mape_pct"].asDouble(), 6.5);
-	EXPECT_LE(j["position_err_m"]["rmse"].asDouble(), 0.03);
+	// Measured: DBH RMSE 0.94 cm, bias +0.08 cm, MAPE 3.0 %, position 0.74
+	// cm (before the along-ray fit was trusted up to 60 % of the radius from
+	// the orthogonal one: 1.24 cm, -0.18 cm, 4.7 %, 1.16 cm; small stems
+	// seen from 10-15 m came out 20-25 % thin; before the along-ray DBH fit
+	// and the 1.0-1.6 m band: 1.94 cm, -1.04 cm, 7.7 %, 1.7 cm).
+	EXPECT_LE(j["dbh"]["rmse_m"].asDouble(), 0.011);
+	EXPECT_LE(std::abs(j["dbh"]["bias_m"].asDouble()), 0.003);
+	EXPECT_LE(j["dbh"]["mape_pct"].asDouble(), 3.8);
+	EXPECT_LE(j["position_err_m"]["rmse"].asDouble(), 0.01);
 
 	// The tree layer's cost is reported per stage.
 	const auto s = readJson(out + "/run_summary.json");

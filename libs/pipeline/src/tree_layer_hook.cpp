@@ -28,7 +28,7 @@ void MappingPipeline::feedTreeLayer(const std::vector<Eigen::Vector3f>& a,
 	pts.reserve(a.size() + b.size());
 	pts.insert(pts.end(), a.begin(), a.end());
 	pts.insert(pts.end(), b.begin(), b.end());
-	tree_layer_->addScan(pts, sensor);
+	tree_layer_->addScan(pts, sensor, trajectory_.back().t_s);
 	tree_layer_->update(sensor, map_);
 	stats_.tree_ms.push_back(msSince(t0));
 }
@@ -46,7 +46,7 @@ void MappingPipeline::feedTreeLayerOdometry(const Eigen::Isometry3d& scan_pose)
 	std::vector<Eigen::Vector3f> pts(local.size());
 	for (size_t i = 0; i < local.size(); i++) pts[i] = T * local[i];
 	const Eigen::Vector3d sensor = scan_pose.translation();
-	tree_layer_->addScan(pts, sensor);
+	tree_layer_->addScan(pts, sensor, trajectory_.back().t_s);
 	tree_layer_->update(sensor, map_);
 	stats_.tree_ms.push_back(msSince(t0));
 }

@@ -178,68 +178,107 @@ bool rayResidual(const Eigen::Vector2d& q, const Eigen::Vector2d& d,
 bool refineCircleAlongRays(const Points2D& p, const Points2D& dir, Circle& c,
                            double min_scale_m, int max_iterations)
 {
-	if (p.size() != dir.size() || p.size() < 3) return false;
-	Eigen::Vector3d x(c.centre.x(), c.centre.y(), c.radius_m);
+	RayFitOptions o;
+	o.min_scale_m = min_scale_m;
+	o.max_iterations = max_iterations;
+	return refineCircleAlongRays(p, dir, c, o);
+}
+
+bool refineCircleAlongRays(const Points2D& p, const Points2D& dir, Circle& c,
+                           const RayFitOptions& o, Eigen::Vector2d* drift)
+{
+	const size_t n = p.size();
+	if (dir.size() != n || n < 3 || (o.times && o.times->size() != n))
+		return false;
+	// Apparent drift of the stem: its centre at time t is c + v (t - t̄),
+	// t̄ the mean time, under a Gaussian prior on v.
+	const bool moving = o.times && o.drift_sigma_m_per_s > 0;
+	std::vector<double> dt(n, 0.0);
+	if (moving)
+	{
+		double tm = 0;
+		for (size_t i = 0; i < n; i++) tm += (*o.times)[i];
+		tm /= double(n);
+		for (size_t i = 0; i < n; i++) dt[i] = (*o.times)[i] - tm;
+	}
+	const double inv_sv2 =
+	    moving ? 1 / (o.drift_sigma_m_per_s * o.drift_sigma_m_per_s) : 0;
+	// x = (cx, cy, r, vx, vy).
+	Eigen::Matrix<double, 5, 1> x;
+	x << c.centre.x(), c.centre.y(), c.radius_m, 0, 0;
+	auto at = [&](const Eigen::Matrix<double, 5, 1>& v, size_t i) {
+		return Circle{{v[0] + v[3] * dt[i], v[1] + v[4] * dt[i]}, v[2]};
+	};
 	double lambda = 1e-3;
-	std::vector<double> r(p.size());
-	std::vector<char> hit(p.size());
-	// Cost with a fixed scale; a missed ray costs the Tukey maximum.
-	auto cost = [&](const Circle& cc, double s)
+	std::vector<double> r(n);
+	std::vector<char> hit(n);
+	// Cost with a fixed scale; a missed ray costs the Tukey maximum; the
+	// prior on v in the same units (s² per unit of squared residual).
+	auto cost = [&](const Eigen::Matrix<double, 5, 1>& v, double s)
 	{
 		double sum = 0;
 		Eigen::Vector3d J;
-		for (size_t i = 0; i < p.size(); i++)
+		for (size_t i = 0; i < n; i++)
 		{
 			double t;
-			sum += rayResidual(p[i], dir[i], cc, t, J) ? tukeyRho(t, s)
-			                                           : tukeyRho(1e9, s);
+			sum += rayResidual(p[i], dir[i], at(v, i), t, J) ? tukeyRho(t, s)
+			                                                 : tukeyRho(1e9, s);
 		}
-		return sum;
+		return sum + 0.5 * s * s * inv_sv2 * v.tail<2>().squaredNorm();
 	};
-	for (int it = 0; it < max_iterations; it++)
+	std::vector<double> hits;
+	std::vector<Eigen::Vector3d, Eigen::aligned_allocator<Eigen::Vector3d>> Js(
+	    n);
+	for (int it = 0; it < o.max_iterations; it++)
 	{
-		const Circle cur{{x[0], x[1]}, x[2]};
-		std::vector<double> hits;
-		std::vector<Eigen::Vector3d, Eigen::aligned_allocator<Eigen::Vector3d>>
-		    Js(p.size());
-		for (size_t i = 0; i < p.size(); i++)
+		hits.clear();
+		for (size_t i = 0; i < n; i++)
 		{
-			hit[i] = rayResidual(p[i], dir[i], cur, r[i], Js[i]);
+			hit[i] = rayResidual(p[i], dir[i], at(x, i), r[i], Js[i]);
 			if (hit[i]) hits.push_back(r[i]);
 		}
 		if (hits.size() < 3) return false;
-		const double s = madScale(hits, min_scale_m);
-		Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
-		Eigen::Vector3d g = Eigen::Vector3d::Zero();
-		for (size_t i = 0; i < p.size(); i++)
+		const double s = madScale(hits, o.min_scale_m);
+		Eigen::Matrix<double, 5, 5> H = Eigen::Matrix<double, 5, 5>::Zero();
+		Eigen::Matrix<double, 5, 1> g = Eigen::Matrix<double, 5, 1>::Zero();
+		for (size_t i = 0; i < n; i++)
 		{
 			if (!hit[i]) continue;
 			const double w = tukeyWeight(r[i], s);
 			if (w == 0) continue;
-			H += w * Js[i] * Js[i].transpose();
-			g += w * Js[i] * r[i];
+			Eigen::Matrix<double, 5, 1> J;
+			J << Js[i], Js[i][0] * dt[i], Js[i][1] * dt[i];
+			H += w * J * J.transpose();
+			g += w * J * r[i];
 		}
-		const double c0 = cost(cur, s);
+		// Prior on v (and v pinned at 0 when not estimated).
+		const double prior = moving ? s * s * inv_sv2 : 1.0;
+		for (int j = 3; j < 5; j++)
+		{
+			H(j, j) += prior;
+			g[j] += prior * x[j];
+		}
+		const double c0 = cost(x, s);
 		bool improved = false;
 		for (int tries = 0; tries < 10 && !improved; tries++)
 		{
-			Eigen::Matrix3d Hd = H;
+			Eigen::Matrix<double, 5, 5> Hd = H;
 			Hd.diagonal() *= (1 + lambda);
-			const Eigen::Vector3d step = Hd.ldlt().solve(-g);
+			const Eigen::Matrix<double, 5, 1> step = Hd.ldlt().solve(-g);
 			if (!step.allFinite()) return false;
-			const Eigen::Vector3d xn = x + step;
+			const Eigen::Matrix<double, 5, 1> xn = x + step;
 			if (!(xn[2] > 0))
 			{
 				lambda *= 10;
 				continue;
 			}
-			if (cost(Circle{{xn[0], xn[1]}, xn[2]}, s) <= c0)
+			if (cost(xn, s) <= c0)
 			{
 				const double dx = step.norm();
 				x = xn;
 				lambda = std::max(lambda / 10, 1e-9);
 				improved = true;
-				if (dx < 1e-9) it = max_iterations;
+				if (dx < 1e-9) it = o.max_iterations;
 			}
 			else
 				lambda *= 10;
@@ -247,6 +286,7 @@ bool refineCircleAlongRays(const Points2D& p, const Points2D& dir, Circle& c,
 		if (!improved) break;
 	}
 	c = Circle{{x[0], x[1]}, x[2]};
+	if (drift) *drift = x.tail<2>();
 	return x.allFinite() && x[2] > 0;
 }
 

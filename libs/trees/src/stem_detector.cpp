@@ -328,11 +328,14 @@ std::vector<DetectedTree> detectTrees(
     const std::vector<Eigen::Vector3d>& pts, const TerrainModel& terrain,
     const TreeOptions& o, TreeDetectionStats* stats,
     const std::vector<Eigen::Vector3f>* view_dirs,
-    const SegmentedPoints* segments)
+    const SegmentedPoints* segments, const std::vector<float>* point_times)
 {
 	if (view_dirs && view_dirs->size() != pts.size())
 		throw std::invalid_argument(
 		    "detectTrees: view_dirs must hold one direction per point");
+	if (point_times && point_times->size() != pts.size())
+		throw std::invalid_argument(
+		    "detectTrees: point_times must hold one time per point");
 	if (segments && (segments->dirs.size() != segments->pts.size() ||
 	                 segments->segment.size() != segments->pts.size() ||
 	                 (!segments->range_class.empty() &&
@@ -523,7 +526,8 @@ std::vector<DetectedTree> detectTrees(
 		const Eigen::Vector3d e2 = axis.cross(e1).normalized();
 		e1 = e2.cross(axis).normalized();
 
-		Points2D band, band_dir;  // band_dir: unit, or 0 if unknown
+		Points2D band, band_dir;     // band_dir: unit, or 0 if unknown
+		std::vector<double> band_t;  // point times (0 if unknown)
 		size_t n_points = 0;
 		std::vector<double> column_h;
 		const double lo_h = o.slice_min_m - 0.5 * o.slice_thickness_m;
@@ -570,6 +574,7 @@ std::vector<DetectedTree> detectTrees(
 					                   : Eigen::Vector2d::Zero();
 				}
 				band_dir.push_back(v);
+				band_t.push_back(point_times ? (*point_times)[i] : 0.0);
 			}
 		}
 		if (n_points < size_t(o.min_tree_points))
@@ -602,10 +607,12 @@ std::vector<DetectedTree> detectTrees(
 		{
 			const double gate = std::max(4 * f.scale_m, 2 * o.ransac_inlier_m);
 			Points2D near, near_dir;
+			std::vector<double> near_t;
 			for (size_t j = 0; j < band.size(); j++)
 				if (std::abs((band[j] - f.circle.centre).norm() -
 				             f.circle.radius_m) <= gate)
-					near.push_back(band[j]), near_dir.push_back(band_dir[j]);
+					near.push_back(band[j]), near_dir.push_back(band_dir[j]),
+					    near_t.push_back(band_t[j]);
 			Circle c = f.circle;
 			if (near.size() >= size_t(o.min_dbh_points) &&
 			    refineCircleGeometric(near, c) &&
@@ -613,22 +620,31 @@ std::vector<DetectedTree> detectTrees(
 				f = evaluateCircle(near, c, fo);
 			// Range noise is along the rays: where the viewing directions
 			// are known, refine with along-ray residuals (unbiased on one-
-			// sided arcs, where orthogonal ones shrink the circle). A result
-			// far from the orthogonal one (a short, noisy arc the ray model
-			// cannot pin down) is not trusted.
+			// sided arcs, where orthogonal ones shrink the circle; on small
+			// stems seen from 10-15 m by a quarter of the radius). Where the
+			// points carry times, the stem's centre may drift linearly in
+			// time: a map whose poses drift while the stem is passed by
+			// squashes the stem along the drift (doc/trees.md). A result
+			// more than 60 % of the radius from the orthogonal one is not
+			// trusted (a short, noisy arc the ray model cannot pin down).
 			Points2D ray_p, ray_d;
+			std::vector<double> ray_t;
 			for (size_t j = 0; j < near.size(); j++)
 				if (near_dir[j].squaredNorm() > 0)
-					ray_p.push_back(near[j]), ray_d.push_back(near_dir[j]);
+					ray_p.push_back(near[j]), ray_d.push_back(near_dir[j]),
+					    ray_t.push_back(near_t[j]);
 			Circle cr = f.circle;
+			RayFitOptions ro;
+			if (point_times && o.dbh_drift_sigma_m_per_s > 0)
+				ro.times = &ray_t,
+				ro.drift_sigma_m_per_s = o.dbh_drift_sigma_m_per_s;
 			if (o.dbh_along_rays &&
 			    ray_p.size() >=
 			        std::max<size_t>(o.min_dbh_points, near.size() / 2) &&
-			    refineCircleAlongRays(ray_p, ray_d, cr) &&
+			    refineCircleAlongRays(ray_p, ray_d, cr, ro) &&
 			    std::abs(cr.radius_m - f.circle.radius_m) <=
-			        0.25 * f.circle.radius_m &&
-			    (cr.centre - f.circle.centre).norm() <=
-			        0.5 * f.circle.radius_m &&
+			        0.6 * f.circle.radius_m &&
+			    (cr.centre - f.circle.centre).norm() <= f.circle.radius_m &&
 			    cr.radius_m >= fo.min_radius_m &&
 			    cr.radius_m <= fo.max_radius_m)
 				f = evaluateCircle(near, cr, fo);

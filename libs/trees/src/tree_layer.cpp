@@ -61,7 +61,7 @@ void TreeLayer::SortedVoxels::compact(size_t max_pending)
 	for (const auto& q : pending_)
 	{
 		const uint64_t k = keyOf(q.p);
-		add.push_back({k, q.p - centreOf(k), q.dir, 1, q.segment});
+		add.push_back({k, q.p - centreOf(k), q.dir, 1, q.segment, q.time});
 	}
 	pending_.clear();
 	pending_.shrink_to_fit();
@@ -79,7 +79,7 @@ void TreeLayer::SortedVoxels::transform(const Eigen::Isometry3f& T)
 		const Eigen::Vector3f c = T * centroid(v);
 		const uint64_t k = keyOf(c);
 		moved.push_back({k, (c - centreOf(k)) * float(v.count),
-		                 T.linear() * v.dir, v.count, v.segment});
+		                 T.linear() * v.dir, v.count, v.segment, v.time});
 	}
 	voxels_.clear();
 	mergeIn(moved);
@@ -119,9 +119,13 @@ void TreeLayer::SortedVoxels::mergeIn(std::vector<Voxel>& add)
 		if (!merged.empty() && merged.back().key == v.key &&
 		    merged.back().segment == v.segment)
 		{
-			merged.back().sum += v.sum;
-			merged.back().dir += v.dir;
-			merged.back().count += v.count;
+			auto& m = merged.back();
+			m.time =
+			    float((double(m.time) * m.count + double(v.time) * v.count) /
+			          double(m.count + v.count));
+			m.sum += v.sum;
+			m.dir += v.dir;
+			m.count += v.count;
 		}
 		else
 			merged.push_back(v);
@@ -200,10 +204,13 @@ TreeLayer::Column& TreeLayer::column(const ColumnKey& k)
 }
 
 void TreeLayer::addScan(const std::vector<Eigen::Vector3f>& pts,
-                        const Eigen::Vector3d& sensor)
+                        const Eigen::Vector3d& sensor, double time_s)
 {
 	const auto t0 = std::chrono::steady_clock::now();
 	stats_.scans++;
+	if (!std::isfinite(time_s)) time_s = 0.1 * double(stats_.scans - 1);
+	if (!std::isfinite(t0_s_)) t0_s_ = time_s;
+	const float t_rel = float(time_s - t0_s_);
 	const float max_r2 = float(o_.layer_max_range_m * o_.layer_max_range_m);
 	const float inv_g = float(1.0 / o_.layer_ground_cell_m);
 	const Eigen::Vector2f s2 = sensor.head<2>().cast<float>();
@@ -258,7 +265,7 @@ void TreeLayer::addScan(const std::vector<Eigen::Vector3f>& pts,
 		const float n = d.norm();
 		resident(*col).add(
 		    pts[i], n > 0 ? Eigen::Vector3f(d / n) : Eigen::Vector3f::Zero(),
-		    tagged && h >= seg_lo && h <= seg_hi ? tag(pts[i]) : 0);
+		    tagged && h >= seg_lo && h <= seg_hi ? tag(pts[i]) : 0, t_rel);
 	}
 	stats_.stored_voxels = 0;
 	for (auto& [k, c] : cols_)
@@ -315,6 +322,7 @@ void TreeLayer::detectColumn(const ColumnKey& k, const map::CForestMap& map)
 	};
 	std::vector<Eigen::Vector3d> pts, ground;
 	std::vector<Eigen::Vector3f> dirs;  // per point of pts; 0: unknown
+	std::vector<float> times;           // per point of pts: mean time [s]
 	SegmentedPoints seg;                // breast-height voxels per time segment
 	for (int dx = -1; dx <= 1; dx++)
 		for (int dy = -1; dy <= 1; dy++)
@@ -327,10 +335,11 @@ void TreeLayer::detectColumn(const ColumnKey& k, const map::CForestMap& map)
 			auto& stem = resident(it->second);
 			stem.compact();
 			stem.forEach(
-			    [&](const Eigen::Vector3f& c, const Eigen::Vector3f& d)
+			    [&](const Eigen::Vector3f& c, const Eigen::Vector3f& d, float t)
 			    {
 				    if (inside(c.x(), c.y(), margin))
-					    pts.push_back(c.cast<double>()), dirs.push_back(d);
+					    pts.push_back(c.cast<double>()), dirs.push_back(d),
+					        times.push_back(t);
 			    },
 			    [&](const Eigen::Vector3f& c, const Eigen::Vector3f& d,
 			        uint32_t s)
@@ -368,10 +377,12 @@ void TreeLayer::detectColumn(const ColumnKey& k, const map::CForestMap& map)
 			{
 				const Eigen::Vector3d p = c.cast<double>();
 				if (dtm.heightAboveGround(p) > band_top)
-					pts.push_back(p), dirs.push_back(Eigen::Vector3f::Zero());
+					pts.push_back(p), dirs.push_back(Eigen::Vector3f::Zero()),
+					    times.push_back(0.0f);
 			}
-		for (const auto& t : detectTrees(pts, dtm, o_, nullptr, &dirs,
-		                                 seg.pts.empty() ? nullptr : &seg))
+		for (const auto& t :
+		     detectTrees(pts, dtm, o_, nullptr, &dirs,
+		                 seg.pts.empty() ? nullptr : &seg, &times))
 			if (t.record.x >= x0 && t.record.x < x0 + column_m_ &&
 			    t.record.y >= y0 && t.record.y < y0 + column_m_)
 				found.push_back(t.record);
@@ -477,7 +488,7 @@ std::vector<Eigen::Vector3f> TreeLayer::stemPoints(const ColumnKey& k) const
 	auto& stem =
 	    const_cast<TreeLayer*>(this)->resident(const_cast<Column&>(it->second));
 	stem.compact();
-	stem.forEach([&](const Eigen::Vector3f& c, const Eigen::Vector3f&)
+	stem.forEach([&](const Eigen::Vector3f& c, const Eigen::Vector3f&, float)
 	             { out.push_back(c); });
 	return out;
 }

@@ -14,9 +14,10 @@ namespace forest_slam::trees
 	X(slice_min_m)                                                             \
 	X(slice_max_m)                                                             \
 	X(slice_step_m)                                                            \
-	X(slice_thickness_m) X(kmeans_branching) X(kmeans_leaf_points) X(          \
-	    link_distance_m) X(min_slice_points) X(min_dbh_m) X(max_dbh_m)         \
-	    X(section_max_rmse_m) X(section_rmse_rel) X(section_min_arc_deg) X(    \
+	X(slice_thickness_m)                                                       \
+	X(kmeans_branching) X(kmeans_leaf_points) X(link_distance_m) X(            \
+	    min_slice_points) X(min_dbh_m) X(max_dbh_m) X(section_max_rmse_m)      \
+	    X(section_rmse_rel) X(section_min_arc_deg) X(                          \
 	        section_min_inlier_ratio) X(max_centre_step_m) X(max_radius_ratio) \
 	        X(max_slice_gap) X(min_slices) X(max_lean_deg) X(                  \
 	            max_taper_m_per_m) X(max_axis_rmse_m) X(min_tree_points)       \
@@ -30,10 +31,11 @@ namespace forest_slam::trees
 	                            X(layer_margin_m) X(slice_cell_m)              \
 	                                X(dbh_along_rays) X(section_ring_search)   \
 	                                    X(layer_spill_to_disk)                 \
-	                                        X(dbh_segment_scans)               \
-	                                            X(dbh_segment_shift_m) X(      \
-	                                                dbh_range_step_m)          \
-	                                                X(dbh_segment_band_half_m)
+	                                        X(dbh_segment_scans) X(            \
+	                                            dbh_segment_shift_m)           \
+	                                            X(dbh_range_step_m) X(         \
+	                                                dbh_segment_band_half_m)   \
+	                                                X(dbh_drift_sigma_m_per_s)
 
 void TreeOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
                                      const std::string& s)
@@ -68,6 +70,8 @@ void TreeOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 	if (dbh_range_step_m < 0) bad("dbh_range_step_m must be >= 0");
 	if (dbh_segment_band_half_m <= 0)
 		bad("dbh_segment_band_half_m must be > 0");
+	if (dbh_drift_sigma_m_per_s < 0)
+		bad("dbh_drift_sigma_m_per_s must be >= 0");
 	if (layer_max_hag_m <= layer_min_hag_m)
 		bad("layer_max_hag_m must be > layer_min_hag_m");
 }

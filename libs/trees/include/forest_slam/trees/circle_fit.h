@@ -74,6 +74,25 @@ CircleFitResult evaluateCircle(const Points2D& p, const Circle& c,
 bool refineCircleAlongRays(const Points2D& p, const Points2D& dir, Circle& c,
                            double min_scale_m = 0.002, int max_iterations = 50);
 
+/** Options of the along-ray fit beyond the defaults of the overload above. */
+struct RayFitOptions
+{
+	/** Per point (e.g. the mean time of a voxel's scan points) [s]; with
+	 * drift_sigma_m_per_s > 0 the circle's centre moves linearly in time,
+	 * c + v (t - t̄) with t̄ the weighted mean time: the apparent drift of
+	 * a stem in a map whose poses drift while the stem is seen (an
+	 * odometry scale error squashes a stem passed by along the walk). `c`
+	 * is then the circle at t̄. */
+	const std::vector<double>* times = nullptr;
+	double drift_sigma_m_per_s = 0;  ///< Gaussian prior on v per axis
+	double min_scale_m = 0.002;
+	int max_iterations = 50;
+};
+/** `drift` (optional): the fitted v (zero if not estimated). */
+bool refineCircleAlongRays(const Points2D& p, const Points2D& dir, Circle& c,
+                           const RayFitOptions& o,
+                           Eigen::Vector2d* drift = nullptr);
+
 /** Multi-view fit of one stem seen in several time segments of a SLAM run,
  * each with its own small pose error: the points of segment g lie on the
  * circle (centre + s_g, r) with a common radius and a segment shift s_g

@@ -75,12 +75,15 @@ struct SegmentedPoints
  * (optional): the breast-height points per time segment; if they hold two
  * or more segments near a stem, its DBH circle is finally refined on them
  * with one shift per segment (refineCircleSegments, prior
- * o.dbh_segment_shift_m). */
+ * o.dbh_segment_shift_m). `point_times` (optional, one per point) [s]:
+ * with o.dbh_drift_sigma_m_per_s > 0 the along-ray DBH fit lets the stem's
+ * centre drift linearly in time (RayFitOptions). */
 std::vector<DetectedTree> detectTrees(
     const std::vector<Eigen::Vector3d>& pts, const TerrainModel& terrain,
     const TreeOptions& o, TreeDetectionStats* stats = nullptr,
     const std::vector<Eigen::Vector3f>* view_dirs = nullptr,
-    const SegmentedPoints* segments = nullptr);
+    const SegmentedPoints* segments = nullptr,
+    const std::vector<float>* point_times = nullptr);
 
 /** The multi-view refinement of a DBH circle: the band points of `seg`
  * (already in the circle's 2D frame: `p`, unit directions or zero `dir`,

@@ -21,6 +21,7 @@
 #include <Eigen/Geometry>
 
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <type_traits>
 #include <unordered_map>
@@ -59,9 +60,11 @@ class TreeLayer
 	TreeLayer(const TreeOptions& o, double column_size_m);
 
 	/** Adds the points (map frame, gravity-aligned, deskewed) of one scan
-	 * taken from `sensor` (map frame). */
+	 * taken from `sensor` (map frame) at `time_s` (NaN: 0.1 s per scan
+	 * added, a 10 Hz lidar). */
 	void addScan(const std::vector<Eigen::Vector3f>& pts,
-	             const Eigen::Vector3d& sensor);
+	             const Eigen::Vector3d& sensor,
+	             double time_s = std::numeric_limits<double>::quiet_NaN());
 
 	/** Detects the stems of every column with new points whose square is
 	 * farther than layer_complete_distance_m from `sensor`, and writes the
@@ -101,9 +104,9 @@ class TreeLayer
 		/** `segment`: the time segment of the point's scan, or 0 (merged
 		 * with every segment's voxel of the cell). */
 		void add(const Eigen::Vector3f& p, const Eigen::Vector3f& dir,
-		         uint32_t segment = 0)
+		         uint32_t segment = 0, float time = 0)
 		{
-			pending_.push_back({p, dir, segment});
+			pending_.push_back({p, dir, segment, time});
 		}
 		/** Merges the buffer if it holds more than `max_pending` points. */
 		void compact(size_t max_pending = 0);
@@ -111,10 +114,10 @@ class TreeLayer
 		{
 			return (spilled_ ? spill_count_ : voxels_.size()) + pending_.size();
 		}
-		/** Calls f(centroid, mean viewing direction, not normalised) for
-		 * every voxel, the time segments of a cell merged (compact()
-		 * first); and seg(centroid, direction, segment) for every voxel of
-		 * a segment != 0, if given. */
+		/** Calls f(centroid, mean viewing direction (not normalised), mean
+		 * time of the points) for every voxel, the time segments of a cell
+		 * merged (compact() first); and seg(centroid, direction, segment)
+		 * for every voxel of a segment != 0, if given. */
 		template <class F, class S = std::nullptr_t>
 		void forEach(F&& f, S&& seg = nullptr) const
 		{
@@ -123,11 +126,13 @@ class TreeLayer
 				Eigen::Vector3f sum = Eigen::Vector3f::Zero(),
 				                dir = Eigen::Vector3f::Zero();
 				uint32_t count = 0;
+				double t = 0;
 				const uint64_t key = voxels_[i].key;
 				for (; i < voxels_.size() && voxels_[i].key == key; i++)
 				{
 					const Voxel& v = voxels_[i];
 					sum += v.sum, dir += v.dir, count += v.count;
+					t += double(v.time) * v.count;
 					if constexpr (!std::is_same_v<std::decay_t<S>,
 					                              std::nullptr_t>)
 						if (v.segment != 0)
@@ -136,7 +141,7 @@ class TreeLayer
 							    v.segment);
 				}
 				f(Eigen::Vector3f(centreOf(key) + sum / float(count)),
-				  Eigen::Vector3f(dir / float(count)));
+				  Eigen::Vector3f(dir / float(count)), float(t / count));
 			}
 		}
 		void transform(const Eigen::Isometry3f& T);
@@ -165,11 +170,13 @@ class TreeLayer
 			uint32_t count;
 			uint32_t
 			    segment;  ///< time segment (0: none); sorted by (key, segment)
+			float time;   ///< mean time of the points [s since the first scan]
 		};
 		struct Pending
 		{
 			Eigen::Vector3f p, dir;
 			uint32_t segment;
+			float time;
 		};
 		double voxel_m_;
 		std::vector<Voxel> voxels_;  ///< sorted by key
@@ -207,6 +214,7 @@ class TreeLayer
 	void spillFar(const Eigen::Vector3d& sensor);
 	std::unordered_map<ColumnKey, Column, ColumnKeyHash> cols_;
 	uint32_t next_id_ = 1;
+	double t0_s_ = std::numeric_limits<double>::quiet_NaN();  ///< first scan
 	TreeLayerStats stats_;
 
 	Column& column(const ColumnKey& k);

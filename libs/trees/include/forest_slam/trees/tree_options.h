@@ -59,6 +59,12 @@ struct TreeOptions : public mrpt::config::CLoadableOptions
 	/** Refine the DBH circle with range noise along the viewing rays where
 	 * they are known (the tree layer of a SLAM run). */
 	bool dbh_along_rays = true;
+	/** Tree layer of a SLAM run: the along-ray DBH fit lets the stem's
+	 * centre drift linearly in time (the map's pose drift while the stem is
+	 * seen; an odometry that under-estimates the distance walked squashes
+	 * the stems passed by), under a Gaussian prior of this σ per axis
+	 * [m/s]; a free drift over-corrects (doc/trees.md). 0: off. */
+	double dbh_drift_sigma_m_per_s = 0.0004;
 	/** Tree layer of a SLAM run, multi-view DBH (off by default: it did
 	 * not help on the odometry maps, doc/trees.md): stem-band voxels near
 	 * breast height are kept per time segment of this many scans (0: off)
