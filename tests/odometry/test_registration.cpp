@@ -97,6 +97,118 @@ TEST(Registration, RecoversKnownTransformOnSyntheticScene)
 	EXPECT_GT(r.information_eigenvalues[0], 1.0) << "fully constrained scene";
 }
 
+TEST(Registration, EstimatesTheSweepMotionFromFiringFractions)
+{
+	// The scene of RecoversKnownTransformOnSyntheticScene seen during a sweep
+	// deskewed with a motion 3 deg and 5 cm off (an IMU gap, a swinging
+	// rig): with each point's firing fraction the registration recovers the
+	// pose and the error of the sweep's motion; without them the pose is
+	// off.
+	std::vector<Eigen::Vector3f> planar, edges;
+	std::mt19937 rng(2);
+	std::uniform_real_distribution<float> U(-10, 10);
+	for (int i = 0; i < 3000; i++)
+	{
+		planar.emplace_back(U(rng), U(rng), -1.5f);
+		planar.emplace_back(10.f, U(rng), U(rng) * 0.2f + 1);
+		planar.emplace_back(U(rng), -10.f, U(rng) * 0.2f + 1);
+		planar.emplace_back(-10.f, U(rng), U(rng) * 0.2f + 1);
+	}
+	for (int i = 0; i < 300; i++)
+		for (const auto& c : {Eigen::Vector2f(3, 2), Eigen::Vector2f(-4, 5),
+		                      Eigen::Vector2f(6, -6), Eigen::Vector2f(-5, -3)})
+			edges.emplace_back(c.x(), c.y(), -1.5f + 0.02f * i);
+	Eigen::Isometry3d truth = Eigen::Isometry3d::Identity();
+	truth.linear() =
+	    Eigen::AngleAxisd(0.03, Eigen::Vector3d(0.3, -0.2, 1).normalized())
+	        .toRotationMatrix();
+	truth.translation() = Eigen::Vector3d(0.1, -0.05, 0.02);
+	const Eigen::Vector3d w =
+	    3 * M_PI / 180 * Eigen::Vector3d(1, 0.5, -0.7).normalized();
+	const Eigen::Vector3d v(0.04, -0.03, 0.01);
+	// Firing fraction by azimuth (one revolution); the source as deskewed
+	// with the wrong motion: exp(s w) q + s v = truth^-1 p.
+	auto distort = [&](const std::vector<Eigen::Vector3f>& in,
+	                   std::vector<Eigen::Vector3f>& out,
+	                   std::vector<float>& frac)
+	{
+		for (const auto& p : in)
+		{
+			const Eigen::Vector3d u = truth.inverse() * p.cast<double>();
+			const double s = (std::atan2(u.y(), u.x()) + M_PI) / (2 * M_PI);
+			const Eigen::Vector3d q =
+			    Eigen::AngleAxisd(-s * w.norm(), w.normalized()) * (u - s * v);
+			out.push_back(q.cast<float>());
+			frac.push_back(static_cast<float>(s));
+		}
+	};
+	std::vector<Eigen::Vector3f> se, sp;
+	std::vector<float> fe, fp;
+	distort(edges, se, fe);
+	distort(planar, sp, fp);
+	odometry::FeatureTarget tgt;
+	tgt.build(edges, planar);
+	odometry::RegistrationOptions o;
+	o.outer_iterations = 8;
+	odometry::RegistrationPriors priors;
+	priors.edge_fraction = &fe;
+	priors.planar_fraction = &fp;
+	const auto r = odometry::registerFeatures(
+	    tgt, se, sp, Eigen::Isometry3d::Identity(), o, priors);
+	EXPECT_LT((r.T.translation() - truth.translation()).norm(), 0.01);
+	EXPECT_LT(
+	    Eigen::AngleAxisd(r.T.linear().transpose() * truth.linear()).angle(),
+	    0.002);
+	EXPECT_LT((r.sweep_twist.head<3>() - w).norm(), 0.1 * w.norm());
+	// The sweep's translation is the weakest part (its prior, 0.1 m, and a
+	// scene 10 m across): measured 1.7 cm off, against 5.1 cm when not
+	// estimated.
+	EXPECT_LT((r.sweep_twist.tail<3>() - v).norm(), 0.5 * v.norm());
+	// Without the fractions: the distortion biases the pose.
+	const auto plain = odometry::registerFeatures(
+	    tgt, se, sp, Eigen::Isometry3d::Identity(), o, nullptr);
+	EXPECT_TRUE(plain.sweep_twist.isZero());
+	EXPECT_GT(Eigen::AngleAxisd(plain.T.linear().transpose() * truth.linear())
+	                  .angle() +
+	              (plain.T.translation() - truth.translation()).norm(),
+	          0.01);
+}
+
+TEST(Degeneracy, MeanVelocityStepFollowsTheTurnNotTheLastScan)
+{
+	// A walk on a 6 m circle at 1.2 m/s whose speed surges by +-6 % from
+	// scan to scan (a gait) and whose heading wobbles by +-3 deg: the step
+	// over the next 0.1 s follows the mean speed and the turn.
+	std::deque<odometry::TrackPoint> track;
+	const double R = 6, speed = 1.2, dt = 0.1;
+	double arc = 0, last_arc = 0;
+	for (int k = 0; k <= 20; k++)
+	{
+		last_arc = arc;
+		const double a = arc / R;
+		odometry::TrackPoint q;
+		q.t_s = k * dt;
+		q.p = Eigen::Vector3d(R * std::sin(a), R * (1 - std::cos(a)), 0);
+		q.heading_rad = a + (k % 2 ? 0.05 : -0.05);
+		q.constrained = k < 15;  // a degenerate stretch after 1.4 s
+		track.push_back(q);
+		arc += speed * dt * (k % 2 ? 1.06 : 0.94);
+	}
+	const double t0 = 2.0, t1 = 2.1;
+	const auto step = odometry::meanVelocityStep(track, 1.0, t0, t1,
+	                                             (last_arc + 0.12) / R + 0.05);
+	ASSERT_TRUE(step.has_value());
+	const double a_mid = (last_arc + 0.06) / R;
+	const Eigen::Vector3d truth =
+	    speed * dt * Eigen::Vector3d(std::cos(a_mid), std::sin(a_mid), 0);
+	EXPECT_LT((*step - truth).norm(), 0.03 * truth.norm()) << step->transpose();
+	// Too short a history of constrained poses: no step.
+	std::deque<odometry::TrackPoint> short_track(track.begin(),
+	                                             track.begin() + 3);
+	EXPECT_FALSE(
+	    odometry::meanVelocityStep(short_track, 1.0, 0.2, 0.3, 0).has_value());
+}
+
 TEST(Registration, DegenerateCorridorShowsInTheInformation)
 {
 	// Only a floor and two parallel walls along x: translation along x is

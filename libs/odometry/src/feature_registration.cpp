@@ -158,10 +158,13 @@ struct Row
 {
 	Eigen::Vector3d p;
 	PlaneRow plane;
+	double s = 0;  ///< firing fraction of the sweep (sweep twist only)
 };
 
 using Mat6 = Eigen::Matrix<double, 6, 6>;
 using Vec6 = Eigen::Matrix<double, 6, 1>;
+using Mat12 = Eigen::Matrix<double, 12, 12>;
+using Vec12 = Eigen::Matrix<double, 12, 1>;
 
 Eigen::Matrix3d expSO3(const Eigen::Vector3d& w)
 {
@@ -179,23 +182,32 @@ Eigen::Vector3d logSO3(const Eigen::Matrix3d& R)
 /** The state is (R, t); an update δ = (δθ, δt) rotates about the sensor's
  * own position: x' = exp(δθ)(x - t) + t + δt, R' = exp(δθ) R, t' = t + δt.
  * Rotating about the sensor (not the map origin) keeps rotation and
- * translation decoupled far from the origin. */
+ * translation decoupled far from the origin. With the sweep twist (w, v)
+ * (`sweep`), a source point p fired at fraction s is exp(s w) p + s v
+ * first; its update is additive. */
 struct Problem
 {
 	const std::vector<Row>& rows;
 	const RegistrationOptions& o;
 	const RegistrationPriors& priors;
+	bool sweep = false;
 
-	/** Cost (Huber) at (R, t); with H/g, the weighted normal equations. */
-	double evaluate(const Eigen::Matrix3d& R, const Eigen::Vector3d& t, Mat6* H,
-	                Vec6* g, Mat6* info = nullptr, double* sq = nullptr) const
+	/** Cost (Huber) at (R, t, twist); with H/g, the weighted normal
+	 * equations (12 parameters with the sweep twist, else the top-left 6). */
+	double evaluate(const Eigen::Matrix3d& R, const Eigen::Vector3d& t,
+	                const Vec6& twist, Mat12* H, Vec12* g, Mat6* info = nullptr,
+	                double* sq = nullptr) const
 	{
 		double cost = 0;
 		const double h = o.huber_m;
 		if (H) H->setZero(), g->setZero();
 		for (const auto& r : rows)
 		{
-			const Eigen::Vector3d x = R * r.p + t;
+			const Eigen::Vector3d p =
+			    sweep ? Eigen::Vector3d(expSO3(r.s * twist.head<3>()) * r.p +
+			                            r.s * twist.tail<3>())
+			          : r.p;
+			const Eigen::Vector3d x = R * p + t;
 			const double e = r.plane.n.dot(x) + r.plane.d;
 			const double ae = std::abs(e);
 			cost += ae <= h ? 0.5 * e * e : h * (ae - 0.5 * h);
@@ -204,9 +216,37 @@ struct Problem
 			const double w = ae <= h ? 1.0 : h / ae;
 			Vec6 J;
 			J << (x - t).cross(r.plane.n), r.plane.n;
-			H->noalias() += w * J * J.transpose();
-			*g += w * e * J;
+			if (sweep)
+			{
+				// d/dw: s (p_rot x R^T n) (small-angle), d/dv: s R^T n.
+				const Eigen::Vector3d nb = R.transpose() * r.plane.n;
+				const Eigen::Vector3d p_rot = p - r.s * twist.tail<3>();
+				Vec12 J12;
+				J12 << J, r.s * p_rot.cross(nb), r.s * nb;
+				H->noalias() += w * J12 * J12.transpose();
+				*g += w * e * J12;
+			}
+			else
+			{
+				H->topLeftCorner<6, 6>().noalias() += w * J * J.transpose();
+				g->head<6>() += w * e * J;
+			}
 			if (info) info->noalias() += J * J.transpose();
+		}
+		if (sweep)
+		{
+			const double iw = 1.0 / kSweepTwistSigmaRad,
+			             iv = 1.0 / kSweepTwistSigmaM;
+			const Eigen::Vector3d ew = twist.head<3>() * iw,
+			                      ev = twist.tail<3>() * iv;
+			cost += 0.5 * (ew.squaredNorm() + ev.squaredNorm());
+			if (H)
+			{
+				H->block<3, 3>(6, 6) += iw * iw * Eigen::Matrix3d::Identity();
+				H->block<3, 3>(9, 9) += iv * iv * Eigen::Matrix3d::Identity();
+				g->segment<3>(6) += iw * ew;
+				g->segment<3>(9) += iv * ev;
+			}
 		}
 		if (priors.motion && o.prior_translation_sigma_m > 0 &&
 		    o.prior_rotation_sigma_deg > 0)
@@ -219,12 +259,10 @@ struct Problem
 			cost += 0.5 * (et.squaredNorm() + er.squaredNorm());
 			if (H)
 			{
-				H->topLeftCorner<3, 3>() +=
-				    ir * ir * Eigen::Matrix3d::Identity();
-				H->bottomRightCorner<3, 3>() +=
-				    it * it * Eigen::Matrix3d::Identity();
-				g->head<3>() += ir * er;
-				g->tail<3>() += it * et;
+				H->block<3, 3>(0, 0) += ir * ir * Eigen::Matrix3d::Identity();
+				H->block<3, 3>(3, 3) += it * it * Eigen::Matrix3d::Identity();
+				g->segment<3>(0) += ir * er;
+				g->segment<3>(3) += it * et;
 			}
 		}
 		if (priors.up_in_source && o.gravity_sigma_deg > 0)
@@ -244,8 +282,8 @@ struct Problem
 				J(1, 0) = -v.z();
 				J(1, 2) = v.x();
 				J *= ig;
-				H->noalias() += J.transpose() * J;
-				g->noalias() += J.transpose() * e;
+				H->topLeftCorner<6, 6>().noalias() += J.transpose() * J;
+				g->head<6>().noalias() += J.transpose() * e;
 			}
 		}
 		return cost;
@@ -273,6 +311,10 @@ RegistrationResult registerFeatures(
 	std::vector<uint8_t> plane_ok, edge_ok;
 	std::vector<PlaneRow> plane_rows, edge_rows;
 	double lambda = 1e-4;
+	const bool sweep = priors.edge_fraction && priors.planar_fraction &&
+	                   priors.edge_fraction->size() == src_edges.size() &&
+	                   priors.planar_fraction->size() == src_planar.size();
+	Vec6 twist = Vec6::Zero();
 
 	const int shrink_steps = std::max(1, o.outer_iterations / 2);
 	for (int it = 0; it < o.outer_iterations; it++)
@@ -312,15 +354,17 @@ RegistrationResult registerFeatures(
 		for (int i = 0; i < np_src; i++)
 			if (plane_ok[i])
 			{
-				rows.push_back({src_planar[i].cast<double>(), plane_rows[i]});
+				rows.push_back({src_planar[i].cast<double>(), plane_rows[i],
+				                sweep ? (*priors.planar_fraction)[i] : 0.0});
 				np++;
 			}
 		for (int i = 0; i < ne_src; i++)
 			if (edge_ok[i])
 			{
 				const Eigen::Vector3d p = src_edges[i].cast<double>();
-				rows.push_back({p, edge_rows[2 * i]});
-				rows.push_back({p, edge_rows[2 * i + 1]});
+				const double fs = sweep ? (*priors.edge_fraction)[i] : 0.0;
+				rows.push_back({p, edge_rows[2 * i], fs});
+				rows.push_back({p, edge_rows[2 * i + 1], fs});
 				ne++;
 			}
 		res.edge_matches = ne;
@@ -330,15 +374,16 @@ RegistrationResult registerFeatures(
 		res.lever_arm_m = std::sqrt(r2 / std::max<size_t>(1, rows.size()));
 		if (ne + np < 6) break;  // not enough constraints: keep the guess
 
-		const Problem prob{rows, o, priors};
+		const Problem prob{rows, o, priors, sweep};
 		const Eigen::Matrix3d R_start = R;
 		const Eigen::Vector3d t_start = t;
-		Mat6 H, info;
-		Vec6 g;
+		Mat12 H;
+		Mat6 info;
+		Vec12 g;
 		for (int k = 0; k < o.lm_iterations; k++)
 		{
 			info.setZero();
-			const double cost = prob.evaluate(R, t, &H, &g, &info);
+			const double cost = prob.evaluate(R, t, twist, &H, &g, &info);
 			res.information = info;
 			res.information_eigenvalues =
 			    Eigen::SelfAdjointEigenSolver<Mat6>(info).eigenvalues();
@@ -346,20 +391,34 @@ RegistrationResult registerFeatures(
 			bool accepted = false;
 			for (int tries = 0; tries < 6 && !accepted; tries++)
 			{
-				Mat6 A = H;
-				A.diagonal() += lambda * H.diagonal().cwiseMax(1e-9);
-				const Vec6 dx = A.ldlt().solve(-g);
+				Vec12 dx = Vec12::Zero();
+				if (sweep)
+				{
+					Mat12 A = H;
+					A.diagonal() += lambda * H.diagonal().cwiseMax(1e-9);
+					dx = A.ldlt().solve(-g);
+				}
+				else
+				{
+					Mat6 A = H.topLeftCorner<6, 6>();
+					A.diagonal() += lambda * A.diagonal().cwiseMax(1e-9);
+					dx.head<6>() = A.ldlt().solve(-g.head<6>());
+				}
 				if (!dx.allFinite()) break;
 				const Eigen::Matrix3d R_new = expSO3(dx.head<3>()) * R;
-				const Eigen::Vector3d t_new = t + dx.tail<3>();
-				if (prob.evaluate(R_new, t_new, nullptr, nullptr) < cost)
+				const Eigen::Vector3d t_new = t + dx.segment<3>(3);
+				const Vec6 twist_new = twist + dx.tail<6>();
+				if (prob.evaluate(R_new, t_new, twist_new, nullptr, nullptr) <
+				    cost)
 				{
 					R = R_new;
 					t = t_new;
+					twist = twist_new;
 					lambda = std::max(1e-7, lambda * 0.3);
 					accepted = true;
 					if (dx.head<3>().norm() < 0.1 * o.converged_rotation_rad &&
-					    dx.tail<3>().norm() < 0.1 * o.converged_translation_m)
+					    dx.segment<3>(3).norm() <
+					        0.1 * o.converged_translation_m)
 						k = o.lm_iterations;  // converged for these matches
 				}
 				else
@@ -368,7 +427,7 @@ RegistrationResult registerFeatures(
 			if (!accepted) break;
 		}
 		double sq = 0;
-		prob.evaluate(R, t, nullptr, nullptr, nullptr, &sq);
+		prob.evaluate(R, t, twist, nullptr, nullptr, nullptr, &sq);
 		res.rmse_m = std::sqrt(sq / std::max<size_t>(1, rows.size()));
 		const double dt = (t - t_start).norm();
 		const double dr = Eigen::AngleAxisd(R * R_start.transpose()).angle();
@@ -383,6 +442,7 @@ RegistrationResult registerFeatures(
 	out.linear() = Eigen::Quaterniond(R).normalized().toRotationMatrix();
 	out.translation() = t;
 	res.T = out;
+	res.sweep_twist = twist;
 	return res;
 }
 

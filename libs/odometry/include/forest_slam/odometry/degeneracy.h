@@ -10,7 +10,9 @@
 // - gaps in the scans: the prediction bends with the IMU's turn.
 #include <Eigen/Geometry>
 
+#include <deque>
 #include <functional>
+#include <optional>
 
 namespace forest_slam::odometry
 {
@@ -42,5 +44,32 @@ Eigen::Isometry3d predictAcrossGap(
     const Eigen::Isometry3d& velocity, double period_s, double t0_s,
     double t1_s,
     const std::function<Eigen::Matrix3d(double, double)>& rotation);
+
+/** A pose of the recent track: time, lidar position (map frame), heading
+ * (horizontal direction of the lidar's x axis, rad) and whether the
+ * registration constrained it in every direction. */
+struct TrackPoint
+{
+	double t_s = 0;
+	Eigen::Vector3d p = Eigen::Vector3d::Zero();
+	double heading_rad = 0;
+	bool constrained = false;
+};
+
+/** Heading of a lidar orientation: the horizontal direction of its x axis
+ * (of its y axis when x points nearly up or down). */
+double headingOf(const Eigen::Matrix3d& R);
+
+/** Translation from t0_s to t1_s through a degenerate stretch: the mean
+ * velocity over the last `window_s` of constrained poses of `track` (a
+ * walking gait surges and bobs by 5 % and 0.5 m/s from scan to scan; the
+ * chord over a gait cycle does not), held in the heading frame and turned
+ * with the heading: a line fitted to the headings of the last `window_s` of
+ * the track and `heading_t1` (the IMU-carried heading at t1), evaluated in
+ * the middle of the step. Empty when the constrained poses span less than
+ * half the window. */
+std::optional<Eigen::Vector3d> meanVelocityStep(
+    const std::deque<TrackPoint>& track, double window_s, double t0_s,
+    double t1_s, double heading_t1);
 
 }  // namespace forest_slam::odometry

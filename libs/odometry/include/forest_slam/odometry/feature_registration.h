@@ -125,7 +125,21 @@ struct RegistrationResult
 	 * rotation and translation parts of `information` comparable
 	 * (degeneracy.h). */
 	double lever_arm_m = 0;
+	/** With RegistrationPriors::edge_fraction/planar_fraction: the
+	 * correction (rotation vector [rad], translation [m]) of the sweep's
+	 * motion over the whole sweep, in the frame of the first firing; a
+	 * point fired at fraction s of the sweep, deskewed to q, is at
+	 * exp(s w) q + s v. Zero otherwise. */
+	Eigen::Matrix<double, 6, 1> sweep_twist =
+	    Eigen::Matrix<double, 6, 1>::Zero();
 };
+
+/** Sweep-twist prior of registerFeatures (a correction of the deskew's
+ * motion over one sweep): sigmas of its rotation and translation. A
+ * handheld gait swings the lidar by 2-5 deg from one 0.1 s sweep to the
+ * next (forest-sim handheld). */
+constexpr double kSweepTwistSigmaRad = 5.0 * M_PI / 180;
+constexpr double kSweepTwistSigmaM = 0.1;
 
 /** Optional priors of a registration. */
 struct RegistrationPriors
@@ -135,6 +149,14 @@ struct RegistrationPriors
 	/** "Up" (against gravity) in the source frame, from the IMU attitude:
 	 * keeps roll and pitch on gravity (sigma: gravity_sigma_deg). */
 	const Eigen::Vector3d* up_in_source = nullptr;
+	/** Firing time of every source feature as a fraction of the sweep
+	 * (0..1, same order as src_edges and src_planar). When both are set the
+	 * registration also estimates a correction of the motion the source
+	 * was deskewed with (RegistrationResult::sweep_twist): for sweeps no
+	 * gyro measured (an IMU gap), where a handheld rig's swing makes the
+	 * constant-velocity deskew several degrees wrong. */
+	const std::vector<float>* edge_fraction = nullptr;
+	const std::vector<float>* planar_fraction = nullptr;
 };
 
 /** Estimates T such that T * source ≈ target, starting from `initial`:

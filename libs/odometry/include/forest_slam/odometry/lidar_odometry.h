@@ -14,6 +14,7 @@
 #include <forest_slam/ground/ground_lattice.h>
 #include <forest_slam/imu/imu_buffer.h>
 #include <forest_slam/map/forest_map.h>
+#include <forest_slam/odometry/degeneracy.h>
 #include <forest_slam/odometry/feature_registration.h>
 #include <forest_slam/odometry/local_map.h>
 #include <forest_slam/odometry/map_inserter.h>
@@ -53,6 +54,18 @@ struct OdometryOptions : public mrpt::config::CLoadableOptions
 	 * velocity changes within a sweep, and a constant-velocity deskew tilted
 	 * each scan by up to 0.14 deg in roll (doc/odometry.md). */
 	bool imu_translation = true;
+	/** In a degenerate stretch the held directions follow the mean velocity
+	 * of the last this many seconds of well-constrained scans, turned with
+	 * the IMU's heading (meanVelocityStep, degeneracy.h), instead of the
+	 * last scan's velocity (a walking gait changes it by 5 % from scan to
+	 * scan); 0: the constant-velocity prediction. */
+	double degenerate_velocity_window_s = 1.0;
+	/** A scan no gyro covers (an IMU gap): the registration also estimates
+	 * the sweep's motion (RegistrationPriors::edge_fraction), and the scan
+	 * is re-deskewed with it before it goes into the maps. A handheld gait
+	 * swings the lidar by 2-5 deg from one sweep to the next, so the
+	 * constant-velocity deskew of such a scan is degrees off. */
+	bool sweep_motion_without_imu = true;
 
 	void loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 	                        const std::string& section) override;
@@ -109,9 +122,11 @@ struct SweepMotion
 };
 
 /** Deskews a scan into the frame of its first firing (one transform per
- * firing column); non-finite points are dropped. */
+ * firing column); non-finite points are dropped. `times_s` (optional) gets
+ * each output point's firing time after the first firing. */
 std::vector<features::FeatureInputPoint> deskewScan(
-    const core::ScanPoints& scan, const SweepMotion& motion);
+    const core::ScanPoints& scan, const SweepMotion& motion,
+    std::vector<float>* times_s = nullptr);
 
 /** Marks the ground points (labels of GroundLattice::labelScan, same order)
  * and gives every other point the id of its hierarchical k-means cluster;
@@ -170,6 +185,9 @@ class LidarOdometry
 		std::vector<features::FeatureInputPoint> points;
 		features::Features feats;
 		std::vector<Eigen::Vector3f> edges, planar;  ///< selected features
+		/** Firing time of each selected feature as a fraction of the
+		 * sweep. */
+		std::vector<float> edge_fraction, planar_fraction;
 	};
 	Prepared prepare(const core::ScanPoints& scan, const SweepMotion& motion,
 	                 const Eigen::Isometry3d& predicted, ScanTiming& timing);
@@ -205,6 +223,10 @@ class LidarOdometry
 	 * valid when velocity_map_known_. */
 	Eigen::Vector3d velocity_map_ = Eigen::Vector3d::Zero();
 	bool velocity_map_known_ = false;
+	/** The recent poses (at most kTrackSize): the mean velocity before a
+	 * degenerate stretch. */
+	std::deque<TrackPoint> track_;
+	static constexpr size_t kTrackSize = 200;
 	bool keep_deskewed_ = false;
 	std::vector<Eigen::Vector3f> last_deskewed_;
 	size_t scans_ = 0;
