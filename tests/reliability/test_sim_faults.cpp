@@ -152,10 +152,6 @@ MapRun* SimFaults::baseline_ = nullptr;
 /** One fault: the log substring that names it, when it was injected, and
  * how long after that the pipeline may notice it (a gap is seen at its
  * end). */
-/** ATE a faulty tiny run may always reach (see the tests): about 1.2x the
- * worst measured (0.049 m with every fault). */
-constexpr double kFaultAteFloor_m = 0.06;
-
 struct Expected
 {
 	std::string log_text;
@@ -230,11 +226,12 @@ TEST_F(SimFaults, EveryFaultNamedOnceAndTrajectoryHolds)
 	EXPECT_EQ(s["scans_mapped"].asUInt(),
 	          base.summary["scans_mapped"].asUInt() - 22u);
 
-	// Issue 12 asks for 2x the fault-free ATE. Since the weak gravity prior
-	// and the accelerometer deskew the fault-free tiny run is at 0.0105 m
-	// and the faulty one at 0.049 m (it was 0.050 m against 0.032 m): 2x is
-	// not met. The floor keeps the test a regression guard meanwhile.
-	EXPECT_LE(f.ate_m, std::max(2 * base.ate_m, kFaultAteFloor_m))
+	// Issue 12: within 2x the fault-free ATE. Measured 0.0134 m against
+	// 0.0105 m (1.3x); it was 0.049 m until the scans of the IMU gap got a
+	// 5 deg rotation prior and their sweep's motion estimated (the IMU gap
+	// alone: 0.064 m, now 0.012 m; doc/reliability.md). The runs are
+	// bit-identical from run to run, so no allowance for noise.
+	EXPECT_LE(f.ate_m, 2 * base.ate_m)
 	    << "fault-free ATE " << base.ate_m << " m";
 	std::printf("ATE: fault-free %.4f m, with faults %.4f m\n", base.ate_m,
 	            f.ate_m);
@@ -255,11 +252,13 @@ TEST_F(SimFaults, OpenFieldIsDegenerateAndBridged)
 	          base.summary["scans_degenerate"].asUInt() + 15u);
 	EXPECT_EQ(s["scans_mapped"].asUInt(),
 	          base.summary["scans_mapped"].asUInt());
-	// The motion model carries the pose through the 3 s (about 3.3 m
+	// The motion model carries the pose through the 3 s (about 3.5 m
 	// walked): without holding the weak directions on the prediction the
-	// ATE was 0.83 m; measured 0.041 m (fault-free 0.032 m), now 0.031 m
-	// (fault-free 0.0105 m: 2x not met, see kFaultAteFloor_m).
-	EXPECT_LE(f.ate_m, std::max(2 * base.ate_m, kFaultAteFloor_m))
+	// ATE was 0.83 m; holding them at constant velocity 0.031 m; at the mean
+	// velocity of the last second before the stretch, with the
+	// accelerometer deskew kept, 0.018 m (fault-free 0.0105 m: 1.7x; what
+	// is left is the walker speeding up by 3 % in the field).
+	EXPECT_LE(f.ate_m, 2 * base.ate_m)
 	    << "fault-free ATE " << base.ate_m << " m";
 	// The forest itself is never degenerate (the raw, unscaled information
 	// flagged a third of the forest scans and held their translation on the
