@@ -201,6 +201,10 @@ struct Problem
 		double cost = 0;
 		const double h = o.huber_m;
 		if (H) H->setZero(), g->setZero();
+		// Without the sweep twist: the 6x6 system accumulated on its own
+		// (as dense as before the twist existed: the hot loop of every scan).
+		Mat6 H6 = Mat6::Zero();
+		Vec6 g6 = Vec6::Zero();
 		for (const auto& r : rows)
 		{
 			const Eigen::Vector3d p =
@@ -228,10 +232,15 @@ struct Problem
 			}
 			else
 			{
-				H->topLeftCorner<6, 6>().noalias() += w * J * J.transpose();
-				g->head<6>() += w * e * J;
+				H6.noalias() += w * J * J.transpose();
+				g6 += w * e * J;
 			}
 			if (info) info->noalias() += J * J.transpose();
+		}
+		if (H && !sweep)
+		{
+			H->topLeftCorner<6, 6>() = H6;
+			g->head<6>() = g6;
 		}
 		if (sweep)
 		{
