@@ -211,14 +211,28 @@ Submap& CForestMap::submapFor(const Eigen::Vector3f& p)
 	return it->second;
 }
 
+void CForestMap::insertPoints(const std::vector<Eigen::Vector3f>& pts,
+                              bool edges, const Eigen::Isometry3f& T)
+{
+	// A scan's consecutive points almost always share a 20 m submap: look
+	// it up again only when the key changes (unordered_map elements keep
+	// their address while others are added).
+	SubmapKey last{};
+	Submap* sm = nullptr;
+	for (const auto& p : pts)
+	{
+		if (!p.allFinite()) continue;
+		const Eigen::Vector3f q = T * p;
+		const SubmapKey k = submapKeyOf(q);
+		if (!sm || !(k == last)) sm = &submapFor(q), last = k;
+		(edges ? sm->edge : sm->planar).insert(q);
+	}
+}
+
 void CForestMap::insertFeatures(const std::vector<Eigen::Vector3f>& edge_map,
 								const std::vector<Eigen::Vector3f>& planar_map)
 {
-	for (const auto& p : edge_map)
-		if (p.allFinite()) submapFor(p).edge.insert(p);
-	for (const auto& p : planar_map)
-		if (p.allFinite()) submapFor(p).planar.insert(p);
-	markDirty();
+	insertFeatures(edge_map, planar_map, Eigen::Isometry3d::Identity());
 }
 
 void CForestMap::insertFeatures(
@@ -227,18 +241,8 @@ void CForestMap::insertFeatures(
 	const Eigen::Isometry3d& sensor_to_map)
 {
 	const Eigen::Isometry3f T = sensor_to_map.cast<float>();
-	for (const auto& p : edge_sensor)
-		if (p.allFinite())
-		{
-			const Eigen::Vector3f q = T * p;
-			submapFor(q).edge.insert(q);
-		}
-	for (const auto& p : planar_sensor)
-		if (p.allFinite())
-		{
-			const Eigen::Vector3f q = T * p;
-			submapFor(q).planar.insert(q);
-		}
+	insertPoints(edge_sensor, true, T);
+	insertPoints(planar_sensor, false, T);
 	markDirty();
 }
 
@@ -453,16 +457,18 @@ void CForestMap::getVisualizationInto(mrpt::opengl::CSetOfObjects& o) const
 	planar->setColor(0.3f, 0.7f, 0.3f);
 	for (const auto& kv : submaps_)
 	{
-		for (const auto& v : kv.second.edge.voxels())
-		{
-			const auto c = v.second.centroid();
-			edge->insertPoint(c.x(), c.y(), c.z());
-		}
-		for (const auto& v : kv.second.planar.voxels())
-		{
-			const auto c = v.second.centroid();
-			planar->insertPoint(c.x(), c.y(), c.z());
-		}
+		kv.second.edge.forEachVoxel(
+		    [&](const VoxelKey&, const VoxelCloud::Accum& a)
+		    {
+			    const auto c = a.centroid();
+			    edge->insertPoint(c.x(), c.y(), c.z());
+		    });
+		kv.second.planar.forEachVoxel(
+		    [&](const VoxelKey&, const VoxelCloud::Accum& a)
+		    {
+			    const auto c = a.centroid();
+			    planar->insertPoint(c.x(), c.y(), c.z());
+		    });
 	}
 	o.insert(planar);
 	o.insert(edge);
@@ -485,12 +491,15 @@ void CForestMap::saveMetricMapRepresentationToFile(const std::string& prefix) co
 		core::writeFileAtomically(path, [&](std::ostream& os) {
 			char buf[96];
 			for (const auto& kv : submaps_)
-				for (const auto& v : (edges ? kv.second.edge : kv.second.planar).voxels())
-				{
-					const auto c = v.second.centroid();
-					std::snprintf(buf, sizeof(buf), "%.4f %.4f %.4f\n", c.x(), c.y(), c.z());
-					os << buf;
-				}
+				(edges ? kv.second.edge : kv.second.planar)
+				    .forEachVoxel(
+				        [&](const VoxelKey&, const VoxelCloud::Accum& a)
+				        {
+					        const auto c = a.centroid();
+					        std::snprintf(buf, sizeof(buf), "%.4f %.4f %.4f\n",
+					                      c.x(), c.y(), c.z());
+					        os << buf;
+				        });
 		});
 	};
 	write_cloud(prefix + "_edge.xyz", true);
@@ -522,12 +531,12 @@ namespace
 void writeCloud(mrpt::serialization::CArchive& out, const VoxelCloud& c)
 {
 	out.WriteAs<uint64_t>(c.size());
-	for (const auto& kv : c.voxels())
-	{
-		out << kv.first.x << kv.first.y << kv.first.z;
-		out << kv.second.sum.x() << kv.second.sum.y() << kv.second.sum.z()
-			<< kv.second.count;
-	}
+	c.forEachVoxel(
+	    [&](const VoxelKey& k, const VoxelCloud::Accum& a)
+	    {
+		    out << k.x << k.y << k.z;
+		    out << a.sum.x() << a.sum.y() << a.sum.z() << a.count;
+	    });
 }
 void readCloud(mrpt::serialization::CArchive& in, VoxelCloud& c)
 {

@@ -452,12 +452,9 @@ OdometryStep LidarOdometry::processScan(const core::ScanPoints& scan)
 		first_scan_imu_ = use_imu;
 	}
 	step.timing.register_ms = msSince(t);
-	if (keep_deskewed_)
-	{
-		last_deskewed_.clear();
-		last_deskewed_.reserve(cur.points.size());
-		for (const auto& p : cur.points) last_deskewed_.push_back(p.xyz);
-	}
+	last_deskewed_.clear();
+	last_deskewed_.reserve(cur.points.size());
+	for (const auto& p : cur.points) last_deskewed_.push_back(p.xyz);
 
 	// 7. Map update and motion model.
 	insert(cur, pose);

@@ -8,6 +8,8 @@
 #include <cmath>
 #include <ctime>
 #include <optional>
+#include <stdexcept>
+#include <string>
 
 namespace forest_slam::outputs
 {
@@ -56,42 +58,53 @@ size_t RunCollector::spilledBytes() const
 
 void RunCollector::addScan(const core::ScanPoints& scan,
                            const core::StampedPose& pose,
+                           const std::vector<Eigen::Vector3f>& deskewed,
                            const ground::GroundLattice* lattice)
 {
 	if (lattice) lattice_ = lattice;
-	if (pending_)
-	{
-		const core::StampedPose a = pending_->pose;
-		const std::function<bool(double, Eigen::Isometry3d&)> between =
-		    [&](double t, Eigen::Isometry3d& T)
-		{
-			if (!(pose.t_s > a.t_s)) return false;
-			T = core::interpolateIsometry(
-			    a.pose, pose.pose,
-			    std::clamp((t - a.t_s) / (pose.t_s - a.t_s), 0.0, 1.0));
-			return true;
-		};
-		collect(pending_->scan, a, &between);
-	}
-	pending_ = Pending{scan, pose};
-}
-
-void RunCollector::finish()
-{
-	if (!pending_) return;
-	collect(pending_->scan, pending_->pose, nullptr);
-	pending_.reset();
+	if (deskewed.size() != scan.points.size())
+		throw std::invalid_argument(
+		    "RunCollector::addScan: " + std::to_string(deskewed.size()) +
+		    " deskewed points for a scan of " +
+		    std::to_string(scan.points.size()));
+	collect(scan, pose, &deskewed, nullptr);
 }
 
 void RunCollector::addScan(
     const core::ScanPoints& scan, const core::StampedPose& pose,
     const std::function<bool(double, Eigen::Isometry3d&)>& pose_at)
 {
-	collect(scan, pose, &pose_at);
+	collect(scan, pose, nullptr, &pose_at);
+}
+
+const Eigen::Isometry3f& RunCollector::columnMotion(
+    const core::ScanPoint& p, const core::StampedPose& pose,
+    const Eigen::Isometry3d& motion, double sweep_s,
+    const std::function<bool(double, Eigen::Isometry3d&)>* pose_at)
+{
+	if (p.column >= column_done_.size())
+	{
+		column_done_.resize(p.column + 1, 0);
+		column_motion_.resize(p.column + 1);
+	}
+	if (!column_done_[p.column])
+	{
+		Eigen::Isometry3d T_col;
+		if (pose_at && (*pose_at)(pose.t_s + p.t_s, T_col))
+			T_col = pose.pose.inverse() * T_col;
+		else
+			T_col = core::interpolateIsometry(
+			    Eigen::Isometry3d::Identity(), motion,
+			    std::clamp(p.t_s / sweep_s, 0.0, 1.0));
+		column_motion_[p.column] = T_col.cast<float>();
+		column_done_[p.column] = 1;
+	}
+	return column_motion_[p.column];
 }
 
 void RunCollector::collect(
     const core::ScanPoints& scan, const core::StampedPose& pose,
+    const std::vector<Eigen::Vector3f>* deskewed,
     const std::function<bool(double, Eigen::Isometry3d&)>* pose_at)
 {
 	const double cpu0 = threadCpuSeconds();
@@ -128,25 +141,10 @@ void RunCollector::collect(
 	{
 		const auto& p = pts[i];
 		if (!(p.range_m >= min_range_m_ && p.range_m <= max_range_m_)) continue;
-		if (p.column >= column_done_.size())
-		{
-			column_done_.resize(p.column + 1, 0);
-			column_motion_.resize(p.column + 1);
-		}
-		if (!column_done_[p.column])
-		{
-			Eigen::Isometry3d T_col;
-			if (pose_at && (*pose_at)(pose.t_s + p.t_s, T_col))
-				T_col = pose.pose.inverse() * T_col;
-			else
-				T_col = core::interpolateIsometry(
-				    Eigen::Isometry3d::Identity(), motion,
-				    std::clamp(p.t_s / sweep, 0.0, 1.0));
-			column_motion_[p.column] = T_col.cast<float>();
-			column_done_[p.column] = 1;
-		}
-		const Eigen::Vector3f s =
-		    column_motion_[p.column] * Eigen::Vector3f(p.x, p.y, p.z);
+		const Eigen::Vector3f s = deskewed ? (*deskewed)[i]
+		                                   : columnMotion(p, pose, motion,
+		                                                  sweep, pose_at) *
+		                                         Eigen::Vector3f(p.x, p.y, p.z);
 		if (kf_grid && p.range_m <= kf_r) kf_grid->claim(s);
 		if (p.range_m > dense_r) continue;
 		map_xyz_.push_back(T * s);  // map frame from here on

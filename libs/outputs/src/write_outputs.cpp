@@ -118,10 +118,6 @@ OutputSummary writeRunOutputs(const OutputInputs& in, const std::string& dir)
 	const auto& o = in.options;
 	const auto& col = in.collector;
 	const auto geo = Georeference::fromOptions(in.geo);
-	if (col.hasPendingScan())
-		FS_LOG_WARN(
-		    "outputs: the last scan was not collected (RunCollector::"
-		    "finish() not called)");
 	OutputSummary sum;
 	sum.dense_points = col.dense().size();
 	sum.keyframes = col.keyframes().size();

@@ -344,7 +344,6 @@ MappingResult runMapping(const MappingJob& job, const MappingConfig& cfg,
 	result.wall_seconds =
 	    std::chrono::duration<double>(std::chrono::steady_clock::now() - t0)
 							  .count();
-	pipeline.finishOutputs();
 	result.memory_end = sampleMemory(pipeline);
 	FS_LOG_INFO(
 	    "memory at the end of mapping: " << describeMemory(result.memory_end));

@@ -371,13 +371,13 @@ void MappingPipeline::runOdometry(PendingScan& s)
 		if (cfg_.odometry.odometry.use_imu)
 			odometry_->setImu(&imu_buffer_,
 			                  s.sensor_pose.getRotationMatrix().asEigen());
-		odometry_->keepDeskewed(tree_layer_ != nullptr);
 	}
 	auto step = odometry_->processScan(s.pts);
 	backEndScan(s, step.pose);
 	imu_buffer_.pruneBefore(s.pts.stamp_s - 1.0);
 	trajectory_.push_back(step.pose);
-	outputs_.addScan(s.pts, step.pose, &odometry_->groundLattice());
+	outputs_.addScan(s.pts, step.pose, odometry_->lastDeskewed(),
+	                 &odometry_->groundLattice());
 	stats_.scans_mapped++;
 	stats_.scans_degenerate += step.degenerate;
 	stats_.scans_unregistered +=

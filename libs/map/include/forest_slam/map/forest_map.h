@@ -144,6 +144,9 @@ class CForestMap : public mrpt::maps::CMetricMap
 	mutable std::shared_ptr<mrpt::maps::CSimplePointsMap> cached_points_;
 
 	Submap& submapFor(const Eigen::Vector3f& p);
+	/** Moves `pts` by T into the edge or planar clouds of their submaps. */
+	void insertPoints(const std::vector<Eigen::Vector3f>& pts, bool edges,
+	                  const Eigen::Isometry3f& T);
 	void markDirty() { cached_points_.reset(); }
 };
 

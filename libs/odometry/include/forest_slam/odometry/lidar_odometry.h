@@ -167,12 +167,12 @@ class LidarOdometry
 	const ground::GroundLattice& groundLattice() const { return lattice_; }
 	const LocalMap& localMap() const { return local_map_; }
 	size_t scansProcessed() const { return scans_; }
-	/** Keep each scan's deskewed points (lastDeskewed): the tree layer
-	 * takes them rather than re-deskewing between scan poses, which would
-	 * miss the rotation and velocity changes within the sweep. */
-	void keepDeskewed(bool on) { keep_deskewed_ = on; }
-	/** The last scan's points deskewed to its first firing, in the lidar
-	 * frame (same motion as its registration); empty unless keepDeskewed. */
+	/** The last scan's finite points (1:1 with its ScanPoints when the
+	 * caller dropped non-finite ones) deskewed to its first firing, in the
+	 * lidar frame, with the motion its registration used. The tree layer
+	 * and the output collector take them rather than re-deskewing between
+	 * scan poses, which would miss the rotation and velocity changes within
+	 * the sweep. */
 	const std::vector<Eigen::Vector3f>& lastDeskewed() const
 	{
 		return last_deskewed_;
@@ -227,7 +227,6 @@ class LidarOdometry
 	 * degenerate stretch. */
 	std::deque<TrackPoint> track_;
 	static constexpr size_t kTrackSize = 200;
-	bool keep_deskewed_ = false;
 	std::vector<Eigen::Vector3f> last_deskewed_;
 	size_t scans_ = 0;
 };

@@ -62,23 +62,22 @@ class RunCollector
 	explicit RunCollector(const OutputOptions& o, double min_range_m = 0,
 	                      double max_range_m = 1e9);
 
-	/** One mapped scan: `scan` in the sensor frame, `pose` the lidar pose at
-	 * its first firing. The scan is held until the next one arrives: its
-	 * firings are then moved with poses interpolated between the two scan
-	 * poses (extrapolating the motion from the previous scan instead blurs
-	 * stems by centimetres under handheld sway). `lattice` is the odometry's
+	/** One scan the odometry mapped: `scan` in the sensor frame, `pose` the
+	 * lidar pose at its first firing, `deskewed` the scan's points (1:1 with
+	 * scan.points) as the odometry deskewed them to the first firing (IMU
+	 * rotation and accelerometer translation per firing column), so the
+	 * outputs hold what was registered. Interpolating between consecutive
+	 * scan poses instead misses the sway of a handheld rig within the sweep
+	 * (stems 15 m away blurred by centimetres). `lattice` is the odometry's
 	 * ground lattice (may be null); it must outlive this object. */
 	void addScan(const core::ScanPoints& scan, const core::StampedPose& pose,
+	             const std::vector<Eigen::Vector3f>& deskewed,
 	             const ground::GroundLattice* lattice);
 	/** Same, with the lidar pose at any time of the sweep known (e.g. from
 	 * a trajectory file): each firing column moves with its own pose. */
 	void addScan(
 	    const core::ScanPoints& scan, const core::StampedPose& pose,
 	    const std::function<bool(double, Eigen::Isometry3d&)>& pose_at);
-	/** Collects the scan still held by addScan (call once at the end of the
-	 * run, before writing outputs); its motion is extrapolated. */
-	void finish();
-	bool hasPendingScan() const { return pending_.has_value(); }
 	/** A GNSS observation (CObservationGPS with a GGA message; others are
 	 * ignored). */
 	void addGnss(const mrpt::obs::CObservation& obs);
@@ -123,15 +122,18 @@ class RunCollector
 	std::vector<uint8_t> column_done_;
 	std::vector<Eigen::Vector3f> map_xyz_;  // per scan, reused
 	std::vector<uint32_t> kept_;
-	struct Pending
-	{
-		core::ScanPoints scan;
-		core::StampedPose pose;
-	};
-	std::optional<Pending> pending_;
 
+	/** sensor(first firing) <- sensor(firing of p), once per column: from
+	 * pose_at when it knows the time, else `motion` over the sweep. */
+	const Eigen::Isometry3f& columnMotion(
+	    const core::ScanPoint& p, const core::StampedPose& pose,
+	    const Eigen::Isometry3d& motion, double sweep_s,
+	    const std::function<bool(double, Eigen::Isometry3d&)>* pose_at);
+	/** Deskewed points from `deskewed` when given, else per firing column
+	 * from pose_at, else from the motion since the previous scan. */
 	void collect(
 	    const core::ScanPoints& scan, const core::StampedPose& pose,
+	    const std::vector<Eigen::Vector3f>* deskewed,
 	    const std::function<bool(double, Eigen::Isometry3d&)>* pose_at);
 };
 

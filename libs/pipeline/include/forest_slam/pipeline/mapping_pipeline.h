@@ -85,8 +85,6 @@ class MappingPipeline
 	const MappingConfig& config() const { return cfg_; }
 	/** Keyframes, dense map and GNSS epochs for the output files. */
 	const outputs::RunCollector& outputCollector() const { return outputs_; }
-	/** Call once at the end of a run, before writing outputs. */
-	void finishOutputs() { outputs_.finish(); }
 	bool reachedScanLimit() const;
 	/** nullptr unless [loop] enabled (odometry pose source); final after
 	 * finish(). */
