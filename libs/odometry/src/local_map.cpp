@@ -10,10 +10,11 @@ namespace forest_slam::odometry
 {
 size_t LocalMap::memoryBytes() const
 {
-	size_t n = core::hashMapBytes(planar_) + core::hashMapBytes(edges_) +
-	           core::hashMapBytes(coarse_);
+	size_t n = planar_.memoryBytes() + edges_.memoryBytes() +
+	           coarse_.memoryBytes();
 	for (const auto* g : {&planar_, &edges_})
-		for (const auto& kv : *g) n += core::vectorBytes(kv.second.pts);
+		g->forEach([&](Key, const PointCell& c)
+		           { n += core::vectorBytes(c.pts); });
 	return n;
 }
 
@@ -102,44 +103,43 @@ void LocalMap::insert(const std::vector<Eigen::Vector3f>& edges,
 	    static_cast<float>(o_.planar_spacing_m * o_.planar_spacing_m);
 	const float ed2 = static_cast<float>(o_.edge_spacing_m * o_.edge_spacing_m);
 	const double sc = o_.coarse_voxel_m;
-	std::vector<PlaneVoxel*> touched;
-	CellCache<PointGrid> planar_cells, edge_cells;
-	CellCache<PlaneGrid> coarse_cells;
+	std::vector<Key> touched;  // coarse voxels to refit
 	for (const auto& p : planar)
 	{
 		if (!p.allFinite()) continue;
-		addPoint(planar_cells.get(planar_, cellKey(p)), pd2, p);
+		addPoint(planar_[cellKey(p)], pd2, p);
 		if (sc <= 0) continue;
 		const int64_t i = static_cast<int64_t>(std::floor(p.x() / sc)),
 		              j = static_cast<int64_t>(std::floor(p.y() / sc)),
 		              k = static_cast<int64_t>(std::floor(p.z() / sc));
 		bool fresh = false;
-		auto& v = coarse_cells.get(coarse_, key(i, j, k), &fresh);
+		const Key kv = key(i, j, k);
+		auto& v = coarse_.tryEmplace(kv, &fresh);
 		if (fresh) v.origin = Eigen::Vector3d(i * sc, j * sc, k * sc);
 		if (v.n >= o_.max_points_per_voxel) continue;
 		const Eigen::Vector3d q = p.cast<double>() - v.origin;
 		v.sum += q;
 		v.scatter.noalias() += q * q.transpose();
-		v.n++;
-		if (!v.touched) touched.push_back(&v), v.touched = true;
+		if (v.n++ == v.fitted_n) touched.push_back(kv);
 	}
-	for (auto* v : touched)
+	for (Key kv : touched)
 	{
-		refit(*v);
-		v->touched = false;
+		PlaneVoxel& v = *coarse_.find(kv);
+		refit(v);
+		v.fitted_n = v.n;
 	}
 	for (const auto& p : edges)
-		if (p.allFinite()) addPoint(edge_cells.get(edges_, cellKey(p)), ed2, p);
+		if (p.allFinite()) addPoint(edges_[cellKey(p)], ed2, p);
 }
 
 void LocalMap::transform(const Eigen::Isometry3d& T)
 {
 	const Eigen::Isometry3f Tf = T.cast<float>();
 	std::vector<Eigen::Vector3f> edges, planar;
-	for (const auto& [k, c] : edges_)
-		for (const auto& p : c.pts) edges.push_back(Tf * p);
-	for (const auto& [k, c] : planar_)
-		for (const auto& p : c.pts) planar.push_back(Tf * p);
+	edges_.forEach([&](Key, const PointCell& c)
+	               { for (const auto& p : c.pts) edges.push_back(Tf * p); });
+	planar_.forEach([&](Key, const PointCell& c)
+	                { for (const auto& p : c.pts) planar.push_back(Tf * p); });
 	clear();
 	insert(edges, planar);
 }
@@ -147,18 +147,18 @@ void LocalMap::transform(const Eigen::Isometry3d& T)
 void LocalMap::prune(const Eigen::Vector3d& centre)
 {
 	const double r2 = o_.radius_m * o_.radius_m;
-	for (auto it = coarse_.begin(); it != coarse_.end();)
-		it = (it->second.origin - centre).head<2>().squaredNorm() > r2
-		         ? coarse_.erase(it)
-		         : std::next(it);
+	coarse_.eraseIf(
+	    [&](Key, const PlaneVoxel& v)
+	    { return (v.origin - centre).head<2>().squaredNorm() > r2; });
 	for (auto* g : {&planar_, &edges_})
-		for (auto it = g->begin(); it != g->end();)
-			it = it->second.pts.empty() ||
-			             (it->second.pts.front().cast<double>() - centre)
-			                     .head<2>()
-			                     .squaredNorm() > r2
-			         ? g->erase(it)
-			         : std::next(it);
+		g->eraseIf(
+		    [&](Key, const PointCell& c)
+		    {
+			    return c.pts.empty() ||
+			           (c.pts.front().cast<double>() - centre)
+			                   .head<2>()
+			                   .squaredNorm() > r2;
+		    });
 }
 
 void LocalMap::refit(PlaneVoxel& v) const
@@ -193,9 +193,9 @@ bool LocalMap::coarsePlane(const Eigen::Vector3d& x, double gate,
 	bool found = false;
 	for (const auto& d : nb)
 	{
-		const auto it = coarse_.find(key(i + d[0], j + d[1], k + d[2]));
-		if (it == coarse_.end()) continue;
-		const auto& v = it->second;
+		const PlaneVoxel* it = coarse_.find(key(i + d[0], j + d[1], k + d[2]));
+		if (!it) continue;
+		const auto& v = *it;
 		if (!v.planar) continue;
 		const double e = std::abs(v.normal.dot(x - v.mean));
 		// The point must project into the plane's extent, not onto its far
@@ -266,10 +266,10 @@ void LocalMap::knn(const PointGrid& g, const Eigen::Vector3f& x, int k,
 	for (const Cell& c : cells)
 	{
 		if (c.d2 > worst) break;
-		const auto it =
+		const PointCell* cell =
 		    g.find(key(c0[0] + c.di[0], c0[1] + c.di[1], c0[2] + c.di[2]));
-		if (it == g.end()) continue;
-		for (const auto& p : it->second.pts)
+		if (!cell) continue;
+		for (const auto& p : cell->pts)
 		{
 			const float d2 = (p - x).squaredNorm();
 			if (d2 > worst) continue;

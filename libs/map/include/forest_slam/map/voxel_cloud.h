@@ -2,6 +2,8 @@
 // A point cloud kept by a voxel filter: each voxel stores the running sum of
 // the points that fell into it, so its representative is the exact centroid
 // (the paper's §4.5 VoxelGrid behaviour) however many scans fed it.
+#include <forest_slam/core/flat_hash_map.h>
+
 #include <Eigen/Core>
 
 #include <cmath>
@@ -23,19 +25,8 @@ struct VoxelKeyHash
 {
 	size_t operator()(const VoxelKey& k) const
 	{
-		// The three 21-bit-folded coordinates in one word, then a 64-bit
-		// finaliser (splitmix64): neighbouring voxels land far apart, which
-		// the open-addressing table of VoxelCloud needs (linear probing
-		// degrades on runs of nearby hashes).
-		uint64_t h = (static_cast<uint64_t>(static_cast<uint32_t>(k.x)) << 42) ^
-		             (static_cast<uint64_t>(static_cast<uint32_t>(k.y)) << 21) ^
-		             static_cast<uint64_t>(static_cast<uint32_t>(k.z));
-		h ^= h >> 30;
-		h *= 0xbf58476d1ce4e5b9ull;
-		h ^= h >> 27;
-		h *= 0x94d049bb133111ebull;
-		h ^= h >> 31;
-		return static_cast<size_t>(h);
+		return static_cast<size_t>(
+		    core::mixKey(core::packCellKey(k.x, k.y, k.z)));
 	}
 };
 
@@ -58,9 +49,9 @@ class VoxelCloud
 	float voxelSize() const { return voxel_m_; }
 
 	void insert(const Eigen::Vector3f& p);
-	size_t size() const { return size_; }
-	bool empty() const { return size_ == 0; }
-	void clear();
+	size_t size() const { return voxels_.size(); }
+	bool empty() const { return voxels_.empty(); }
+	void clear() { voxels_.clear(); }
 	/** Heap bytes held (estimate, core/memory.h). */
 	size_t memoryBytes() const;
 
@@ -86,29 +77,27 @@ class VoxelCloud
 	template <class F>
 	void forEachVoxel(F&& f) const
 	{
-		for (const Slot& s : slots_)
-			if (s.acc.count != 0) f(s.key, s.acc);
+		voxels_.forEach(
+		    [&](uint64_t k, const Accum& a)
+		    {
+			    f(VoxelKey{core::unpackCellIndex(k, 0),
+			               core::unpackCellIndex(k, 1),
+			               core::unpackCellIndex(k, 2)},
+			      a);
+		    });
 	}
 	/** Restores one voxel (deserialization); replaces an existing one. */
 	void setVoxel(const VoxelKey& k, const Accum& a);
 
    private:
-	// Open addressing with linear probing in a power-of-two table, at most
-	// 5/8 full; an empty slot has count 0. Each scan adds tens of thousands
-	// of points, one lookup each: std::unordered_map's node chasing was the
-	// largest single cost of a mapping run (17 % of the CPU, perf).
-	struct Slot
+	static uint64_t packed(const VoxelKey& k)
 	{
-		VoxelKey key;
-		Accum acc;
-	};
-	Accum& slotFor(const VoxelKey& k);
-	const Accum* find(const VoxelKey& k) const;
-	void grow();
-
+		return core::packCellKey(k.x, k.y, k.z);
+	}
+	// Voxel indices in 21 bits per axis: +-100 km at 0.1 m, far beyond a
+	// stand in the map frame (origin at the first lidar position).
 	float voxel_m_ = 0.2f, inv_size_ = 5.f;
-	std::vector<Slot> slots_;
-	size_t size_ = 0;
+	core::FlatHashMap<Accum> voxels_;
 };
 
 }  // namespace forest_slam::map

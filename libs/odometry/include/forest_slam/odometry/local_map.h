@@ -11,11 +11,11 @@
 //    too sparse.
 // Voxels far from the sensor are dropped (prune); the CForestMap keeps the
 // full map.
+#include <forest_slam/core/flat_hash_map.h>
 #include <forest_slam/odometry/feature_registration.h>
 
 #include <cmath>
 #include <cstdint>
-#include <unordered_map>
 #include <vector>
 
 namespace forest_slam::odometry
@@ -90,70 +90,29 @@ class LocalMap : public RegistrationTarget
 	static Key key(int64_t i, int64_t j, int64_t k)
 	{
 		// 21 bits per axis: +-1e6 cells, far beyond any stand.
-		const uint64_t m = (1u << 21) - 1;
-		return ((static_cast<uint64_t>(i) & m) << 42) |
-		       ((static_cast<uint64_t>(j) & m) << 21) |
-		       (static_cast<uint64_t>(k) & m);
+		return core::packCellKey(i, j, k);
 	}
-	struct KeyHash
-	{
-		size_t operator()(Key k) const
-		{
-			return static_cast<size_t>((k * 0x9E3779B97F4A7C15ull) >> 17);
-		}
-	};
 	struct PlaneVoxel
 	{
 		Eigen::Vector3d origin;  ///< sums are taken relative to it (precision)
 		Eigen::Vector3d sum = Eigen::Vector3d::Zero();
 		Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
 		int n = 0;
+		int fitted_n = 0;  ///< n at the last refit
 		// The plane, refitted by insert() whenever points were added, so the
 		// queries only read (they run on several threads).
 		bool planar = false;
-		bool touched = false;  ///< points added during the current insert()
 		Eigen::Vector3d normal, mean;
 	};
 	struct PointCell
 	{
 		std::vector<Eigen::Vector3f> pts;
 	};
-	using PlaneGrid = std::unordered_map<Key, PlaneVoxel, KeyHash>;
-	using PointGrid = std::unordered_map<Key, PointCell, KeyHash>;
-	/** The cells an insert() touched last, by key: a scan's consecutive
-	 * points (a firing column, then the next one) fall into the same few
-	 * cells, and the hash lookups were most of the insertion time.
-	 * unordered_map elements keep their address until erased, and insert()
-	 * never erases. */
-	template <class Grid>
-	class CellCache
-	{
-	   public:
-		typename Grid::mapped_type& get(Grid& g, Key k, bool* fresh = nullptr)
-		{
-			auto& e = slots_[KeyHash()(k) & (kSlots - 1)];
-			if (e.first == k)
-			{
-				if (fresh) *fresh = false;
-				return *e.second;
-			}
-			auto [it, added] = g.try_emplace(k);
-			if (fresh) *fresh = added;
-			e = {k, &it->second};
-			return it->second;
-		}
-
-	   private:
-		static constexpr size_t kSlots = 256;
-		// ~0 is no key: key() uses the low 63 bits only.
-		std::pair<Key, typename Grid::mapped_type*> slots_[kSlots];
-
-	   public:
-		CellCache()
-		{
-			for (auto& e : slots_) e = {~Key(0), nullptr};
-		}
-	};
+	// Flat tables: a scan's registration queries and insertions are one
+	// lookup per point, and std::unordered_map's node chasing was a sixth
+	// of a mapping run's CPU.
+	using PlaneGrid = core::FlatHashMap<PlaneVoxel>;
+	using PointGrid = core::FlatHashMap<PointCell>;
 	void addPoint(PointCell& c, float min_d2, const Eigen::Vector3f& p);
 	Key cellKey(const Eigen::Vector3f& p) const
 	{
