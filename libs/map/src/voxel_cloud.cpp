@@ -54,7 +54,7 @@ bool VoxelCloud::centroidAt(const Eigen::Vector3f& p, Eigen::Vector3f& c) const
 }
 
 bool VoxelCloud::nearestAround(const Eigen::Vector3f& p, Eigen::Vector3f& best,
-							   float& best_sq) const
+                               float& best_sq) const
 {
 	const VoxelKey k = voxelKeyOf(p, inv_size_);
 	bool found = false;

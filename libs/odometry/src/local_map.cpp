@@ -10,8 +10,8 @@ namespace forest_slam::odometry
 {
 size_t LocalMap::memoryBytes() const
 {
-	size_t n = planar_.memoryBytes() + edges_.memoryBytes() +
-	           coarse_.memoryBytes();
+	size_t n =
+	    planar_.memoryBytes() + edges_.memoryBytes() + coarse_.memoryBytes();
 	for (const auto* g : {&planar_, &edges_})
 		g->forEach([&](Key, const PointCell& c)
 		           { n += core::vectorBytes(c.pts); });
@@ -136,10 +136,16 @@ void LocalMap::transform(const Eigen::Isometry3d& T)
 {
 	const Eigen::Isometry3f Tf = T.cast<float>();
 	std::vector<Eigen::Vector3f> edges, planar;
-	edges_.forEach([&](Key, const PointCell& c)
-	               { for (const auto& p : c.pts) edges.push_back(Tf * p); });
-	planar_.forEach([&](Key, const PointCell& c)
-	                { for (const auto& p : c.pts) planar.push_back(Tf * p); });
+	edges_.forEach(
+	    [&](Key, const PointCell& c)
+	    {
+		    for (const auto& p : c.pts) edges.push_back(Tf * p);
+	    });
+	planar_.forEach(
+	    [&](Key, const PointCell& c)
+	    {
+		    for (const auto& p : c.pts) planar.push_back(Tf * p);
+	    });
 	clear();
 	insert(edges, planar);
 }
@@ -154,10 +160,9 @@ void LocalMap::prune(const Eigen::Vector3d& centre)
 		g->eraseIf(
 		    [&](Key, const PointCell& c)
 		    {
-			    return c.pts.empty() ||
-			           (c.pts.front().cast<double>() - centre)
-			                   .head<2>()
-			                   .squaredNorm() > r2;
+			    return c.pts.empty() || (c.pts.front().cast<double>() - centre)
+			                                    .head<2>()
+			                                    .squaredNorm() > r2;
 		    });
 }
 

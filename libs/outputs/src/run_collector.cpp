@@ -141,10 +141,10 @@ void RunCollector::collect(
 	{
 		const auto& p = pts[i];
 		if (!(p.range_m >= min_range_m_ && p.range_m <= max_range_m_)) continue;
-		const Eigen::Vector3f s = deskewed ? (*deskewed)[i]
-		                                   : columnMotion(p, pose, motion,
-		                                                  sweep, pose_at) *
-		                                         Eigen::Vector3f(p.x, p.y, p.z);
+		const Eigen::Vector3f s =
+		    deskewed ? (*deskewed)[i]
+		             : columnMotion(p, pose, motion, sweep, pose_at) *
+		                   Eigen::Vector3f(p.x, p.y, p.z);
 		if (kf_grid && p.range_m <= kf_r) kf_grid->claim(s);
 		if (p.range_m > dense_r) continue;
 		map_xyz_.push_back(T * s);  // map frame from here on

@@ -33,8 +33,8 @@ struct VoxelKeyHash
 inline VoxelKey voxelKeyOf(const Eigen::Vector3f& p, float inv_size)
 {
 	return {static_cast<int32_t>(std::floor(p.x() * inv_size)),
-			static_cast<int32_t>(std::floor(p.y() * inv_size)),
-			static_cast<int32_t>(std::floor(p.z() * inv_size))};
+	        static_cast<int32_t>(std::floor(p.y() * inv_size)),
+	        static_cast<int32_t>(std::floor(p.z() * inv_size))};
 }
 
 class VoxelCloud
@@ -61,7 +61,7 @@ class VoxelCloud
 	bool centroidAt(const Eigen::Vector3f& p, Eigen::Vector3f& c) const;
 	/** Nearest centroid among the 27 voxels around `p`; false if none. */
 	bool nearestAround(const Eigen::Vector3f& p, Eigen::Vector3f& best,
-					   float& best_sq_dist) const;
+	                   float& best_sq_dist) const;
 
 	struct Accum
 	{
