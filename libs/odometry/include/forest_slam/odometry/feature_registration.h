@@ -14,7 +14,7 @@ namespace forest_slam::odometry
 {
 struct RegistrationOptions : public mrpt::config::CLoadableOptions
 {
-	int outer_iterations = 3;  ///< correspondence searches
+	int outer_iterations = 4;  ///< correspondence searches
 	/** Threads of the correspondence search (the k-NN queries, ~half of a
 	 * scan's time); results do not depend on it. */
 	int threads = 2;

@@ -25,7 +25,7 @@ struct LocalMapOptions : public mrpt::config::CLoadableOptions
 	/** Cells of the point hashes; at least twice [registration]
 	 * max_neighbourhood_m, a k-NN search then visits at most 8 cells. */
 	double cell_m = 1.0;
-	double planar_spacing_m = 0.15;  ///< closer planar points are not kept
+	double planar_spacing_m = 0.1;  ///< closer planar points are not kept
 	double edge_spacing_m = 0.05;   ///< closer edge points are not kept
 	int max_points_per_cell = 200;
 	/** Planes from k nearest points need this spread (std along their second
