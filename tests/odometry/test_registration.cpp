@@ -56,24 +56,39 @@ Eigen::Matrix4d readMatrix(const std::string& path)
 		for (int c = 0; c < 4; c++) f >> M(r, c);
 	return M;
 }
+/** Ground plane at z = -1.5, walls at x = 10 and y = -10 (and x = -10 with
+ * `back_wall`), vertical poles at (3, 2), (-4, 5), (6, -6) (and (-5, -3)). */
+struct BoxScene
+{
+	std::vector<Eigen::Vector3f> planar, edges;
+};
+BoxScene boxScene(unsigned seed, bool back_wall)
+{
+	BoxScene s;
+	std::mt19937 rng(seed);
+	std::uniform_real_distribution<float> U(-10, 10);
+	for (int i = 0; i < 3000; i++)
+	{
+		s.planar.emplace_back(U(rng), U(rng), -1.5f);
+		s.planar.emplace_back(10.f, U(rng), U(rng) * 0.2f + 1);
+		s.planar.emplace_back(U(rng), -10.f, U(rng) * 0.2f + 1);
+		if (back_wall) s.planar.emplace_back(-10.f, U(rng), U(rng) * 0.2f + 1);
+	}
+	std::vector<Eigen::Vector2f> poles = {{3, 2}, {-4, 5}, {6, -6}};
+	if (back_wall) poles.emplace_back(-5, -3);
+	for (int i = 0; i < 300; i++)
+		for (const auto& c : poles)
+			s.edges.emplace_back(c.x(), c.y(), -1.5f + 0.02f * i);
+	return s;
+}
 }  // namespace
 
 TEST(Registration, RecoversKnownTransformOnSyntheticScene)
 {
 	// Ground plane, two walls and three vertical poles: fully constrained.
-	std::vector<Eigen::Vector3f> planar, edges;
-	std::mt19937 rng(1);
-	std::uniform_real_distribution<float> U(-10, 10);
-	for (int i = 0; i < 3000; i++)
-	{
-		planar.emplace_back(U(rng), U(rng), -1.5f);
-		planar.emplace_back(10.f, U(rng), U(rng) * 0.2f + 1);
-		planar.emplace_back(U(rng), -10.f, U(rng) * 0.2f + 1);
-	}
-	for (int i = 0; i < 300; i++)
-		for (const auto& c : {Eigen::Vector2f(3, 2), Eigen::Vector2f(-4, 5),
-		                      Eigen::Vector2f(6, -6)})
-			edges.emplace_back(c.x(), c.y(), -1.5f + 0.02f * i);
+	const BoxScene scene = boxScene(1, false);
+	const auto& planar = scene.planar;
+	const auto& edges = scene.edges;
 	Eigen::Isometry3d truth = Eigen::Isometry3d::Identity();
 	truth.linear() =
 	    Eigen::AngleAxisd(0.05, Eigen::Vector3d(0.2, 0.3, 1).normalized())
@@ -104,20 +119,9 @@ TEST(Registration, EstimatesTheSweepMotionFromFiringFractions)
 	// rig): with each point's firing fraction the registration recovers the
 	// pose and the error of the sweep's motion; without them the pose is
 	// off.
-	std::vector<Eigen::Vector3f> planar, edges;
-	std::mt19937 rng(2);
-	std::uniform_real_distribution<float> U(-10, 10);
-	for (int i = 0; i < 3000; i++)
-	{
-		planar.emplace_back(U(rng), U(rng), -1.5f);
-		planar.emplace_back(10.f, U(rng), U(rng) * 0.2f + 1);
-		planar.emplace_back(U(rng), -10.f, U(rng) * 0.2f + 1);
-		planar.emplace_back(-10.f, U(rng), U(rng) * 0.2f + 1);
-	}
-	for (int i = 0; i < 300; i++)
-		for (const auto& c : {Eigen::Vector2f(3, 2), Eigen::Vector2f(-4, 5),
-		                      Eigen::Vector2f(6, -6), Eigen::Vector2f(-5, -3)})
-			edges.emplace_back(c.x(), c.y(), -1.5f + 0.02f * i);
+	const BoxScene scene = boxScene(2, true);
+	const auto& planar = scene.planar;
+	const auto& edges = scene.edges;
 	Eigen::Isometry3d truth = Eigen::Isometry3d::Identity();
 	truth.linear() =
 	    Eigen::AngleAxisd(0.03, Eigen::Vector3d(0.3, -0.2, 1).normalized())
