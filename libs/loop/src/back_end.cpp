@@ -67,8 +67,10 @@ void BackEnd::addGnss(const GnssFix& f)
 
 bool BackEnd::resultAt(size_t id, Poses& out)
 {
+	const auto t = std::chrono::steady_clock::now();
 	std::unique_lock<std::mutex> lk(mutex_);
 	cv_.wait(lk, [&] { return processed_ >= static_cast<long>(id); });
+	wait_ms_ += msSince(t);
 	auto it = results_.find(id);
 	if (it == results_.end()) return false;
 	out = std::move(it->second);
@@ -233,7 +235,9 @@ std::vector<Closure> BackEnd::closures() const
 }
 BackEndStats BackEnd::stats() const
 {
-	return stats_;
+	BackEndStats s = stats_;
+	s.wait_ms = wait_ms_;
+	return s;
 }
 std::optional<MapToEnu> BackEnd::mapToEnu() const
 {

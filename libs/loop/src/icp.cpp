@@ -15,6 +15,52 @@ IcpTarget::IcpTarget(NormalCloud cloud)
 
 IcpTarget::~IcpTarget() = default;
 
+IcpResult IcpTarget::evaluate(const std::vector<Eigen::Vector3f>& source,
+                              const Eigen::Isometry3d& T,
+                              const IcpOptions& o) const
+{
+	IcpResult res;
+	res.T = T;
+	if (source.empty() || cloud_.points.size() < 10) return res;
+	using Mat6 = Eigen::Matrix<double, 6, 6>;
+	using Vec6 = Eigen::Matrix<double, 6, 1>;
+	std::vector<uint32_t> idx;
+	std::vector<float> d2;
+	// Statistics at the final gate.
+	const float gate2 =
+	    static_cast<float>(o.final_distance_m * o.final_distance_m);
+	Mat6 H = Mat6::Zero();
+	double sse = 0;
+	size_t n = 0;
+	for (const auto& ps : source)
+	{
+		const Eigen::Vector3d p = T * ps.cast<double>();
+		if (tree_->knn(p.cast<float>(), 1, idx, d2) == 0 || d2[0] > gate2)
+			continue;
+		const Eigen::Vector3d q = cloud_.points[idx[0]].cast<double>();
+		const Eigen::Vector3d nrm = cloud_.normals[idx[0]].cast<double>();
+		const double r = nrm.dot(p - q);
+		if (std::abs(r) > 3 * o.kernel_m) continue;
+		Vec6 J;
+		J.head<3>() = p.cross(nrm);
+		J.tail<3>() = nrm;
+		H.noalias() += J * J.transpose();
+		sse += r * r;
+		n++;
+	}
+	res.matches = n;
+	res.overlap = static_cast<double>(n) / source.size();
+	res.rmse_m = n > 0 ? std::sqrt(sse / n) : 1e9;
+	// Rotation rows are in radians times metres: scale them by a 10 m lever
+	// so that both blocks compare (a yaw of 0.1 deg moves points 1.7 cm).
+	Eigen::Matrix<double, 6, 1> s;
+	s << 0.1, 0.1, 0.1, 1, 1, 1;
+	const Mat6 Hs = s.asDiagonal() * H * s.asDiagonal();
+	Eigen::SelfAdjointEigenSolver<Mat6> es(Hs);
+	res.information_eigenvalues = es.eigenvalues();
+	return res;
+}
+
 IcpResult IcpTarget::align(const std::vector<Eigen::Vector3f>& source,
                            const Eigen::Isometry3d& guess,
                            const IcpOptions& o) const
@@ -73,38 +119,11 @@ IcpResult IcpTarget::align(const std::vector<Eigen::Vector3f>& source,
 			break;
 		}
 	}
-	// Final statistics at the final gate.
-	const float gate2 =
-	    static_cast<float>(o.final_distance_m * o.final_distance_m);
-	Mat6 H = Mat6::Zero();
-	double sse = 0;
-	size_t n = 0;
-	for (const auto& ps : source)
-	{
-		const Eigen::Vector3d p = res.T * ps.cast<double>();
-		if (tree_->knn(p.cast<float>(), 1, idx, d2) == 0 || d2[0] > gate2)
-			continue;
-		const Eigen::Vector3d q = cloud_.points[idx[0]].cast<double>();
-		const Eigen::Vector3d nrm = cloud_.normals[idx[0]].cast<double>();
-		const double r = nrm.dot(p - q);
-		if (std::abs(r) > 3 * o.kernel_m) continue;
-		Vec6 J;
-		J.head<3>() = p.cross(nrm);
-		J.tail<3>() = nrm;
-		H.noalias() += J * J.transpose();
-		sse += r * r;
-		n++;
-	}
-	res.matches = n;
-	res.overlap = static_cast<double>(n) / source.size();
-	res.rmse_m = n > 0 ? std::sqrt(sse / n) : 1e9;
-	// Rotation rows are in radians times metres: scale them by a 10 m lever
-	// so that both blocks compare (a yaw of 0.1 deg moves points 1.7 cm).
-	Eigen::Matrix<double, 6, 1> s;
-	s << 0.1, 0.1, 0.1, 1, 1, 1;
-	const Mat6 Hs = s.asDiagonal() * H * s.asDiagonal();
-	Eigen::SelfAdjointEigenSolver<Mat6> es(Hs);
-	res.information_eigenvalues = es.eigenvalues();
+	const IcpResult st = evaluate(source, res.T, o);
+	res.overlap = st.overlap;
+	res.rmse_m = st.rmse_m;
+	res.matches = st.matches;
+	res.information_eigenvalues = st.information_eigenvalues;
 	return res;
 }
 

@@ -55,6 +55,17 @@ std::vector<Eigen::Vector3f> submapCloud(const std::vector<Keyframe>& kfs,
 	return voxelFilter(pts, voxel_m, 1e9);
 }
 
+std::vector<Eigen::Vector3f> thinEvenly(const std::vector<Eigen::Vector3f>& pts,
+                                       size_t max_points)
+{
+	if (max_points == 0 || pts.size() <= max_points) return pts;
+	std::vector<Eigen::Vector3f> out;
+	out.reserve(max_points);
+	for (size_t i = 0; i < max_points; i++)
+		out.push_back(pts[i * pts.size() / max_points]);
+	return out;
+}
+
 namespace
 {
 /** Rotation vector and translation of A^-1 B. */
@@ -84,13 +95,14 @@ Closure verifyClosure(const std::vector<Keyframe>& kfs, const Poses& poses,
 	// Both submaps from the same resolution: the target with normals.
 	IcpTarget target(withNormals(
 	    submapCloud(kfs, poses, t_first, t_last, from, o.cloud_voxel_m)));
-	const auto source = submapCloud(kfs, poses, std::max(s_first, t_last + 1),
-	                                to, to, o.cloud_voxel_m);
+	auto source = submapCloud(kfs, poses, std::max(s_first, t_last + 1), to,
+	                          to, o.cloud_voxel_m);
 	if (target.size() < 200 || source.size() < 200)
 	{
 		c.reason = "few_points";
 		return c;
 	}
+	source = thinEvenly(source, static_cast<size_t>(o.icp_max_points));
 	IcpOptions io;
 	io.iterations = o.icp_iterations;
 	io.start_distance_m = o.icp_start_distance_m;
@@ -140,20 +152,24 @@ Closure verifyClosure(const std::vector<Keyframe>& kfs, const Poses& poses,
 	}
 	// Uniqueness: from guesses displaced horizontally (in the candidate's
 	// frame, where the ground is level), ICP must come back to the same
-	// alignment or find a clearly worse one.
+	// alignment or find a clearly worse one. These re-runs only have to
+	// find another alignment, not refine one: half the source points, and
+	// the alternatives are compared with the same half at r.T.
+	const auto half = thinEvenly(source, std::max<size_t>(200, source.size() / 2));
+	const IcpResult ref = target.evaluate(half, r.T, io);
 	const double shift = std::max(1.0, 1.5 * o.icp_start_distance_m);
 	for (int k = 0; k < 4; k++)
 	{
 		const double a = k * M_PI / 2;
 		Eigen::Isometry3d g = r.T;
 		g.translation() += shift * Eigen::Vector3d(std::cos(a), std::sin(a), 0);
-		const IcpResult alt = target.align(source, g, io);
+		const IcpResult alt = target.align(half, g, io);
 		if (!alt.converged) continue;
 		const auto dd = difference(r.T, alt.T);
 		const bool other =
 		    dd.head<3>().norm() > 0.3 || dd.tail<3>().norm() > 1.0 * M_PI / 180;
-		if (other && alt.overlap > 0.9 * r.overlap &&
-		    alt.rmse_m < 1.2 * r.rmse_m)
+		if (other && alt.overlap > 0.9 * ref.overlap &&
+		    alt.rmse_m < 1.2 * ref.rmse_m)
 		{
 			c.reason = "ambiguous";
 			return c;

@@ -19,6 +19,7 @@ namespace forest_slam::loop
 	X(closure_spacing_keyframes) \
 	X(submap_keyframes)          \
 	X(icp_iterations)            \
+	X(icp_max_points)            \
 	X(icp_start_distance_m)      \
 	X(icp_final_distance_m)      \
 	X(min_overlap)               \
@@ -90,6 +91,9 @@ void LoopOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 		    "max_candidates, detect_every_keyframes, icp_iterations and "
 		    "gnss_min_quality must be >= 1; closure_spacing_keyframes, "
 		    "submap_keyframes and latency_keyframes >= 0");
+	if (icp_max_points != 0 && icp_max_points < 200)
+		throw core::ConfigError(where +
+		                        "icp_max_points must be 0 (all) or >= 200");
 	if (icp_final_distance_m > icp_start_distance_m)
 		throw core::ConfigError(
 		    where + "icp_final_distance_m must be <= icp_start_distance_m");

@@ -37,6 +37,9 @@ struct BackEndStats
 	size_t keyframes = 0, candidates = 0, closures = 0, optimisations = 0;
 	size_t gnss_fixes = 0, gnss_outliers = 0;
 	double verify_ms = 0, optimise_ms = 0;  ///< worker CPU-side totals
+	/** Time the pipeline waited in resultAt for the worker (the back-end
+	 * slowing the pipeline down). */
+	double wait_ms = 0;
 };
 
 class BackEnd
@@ -97,6 +100,7 @@ class BackEnd
 	PoseGraph graph_;
 	std::vector<Closure> closures_;
 	BackEndStats stats_;
+	double wait_ms_ = 0;  ///< caller's side (resultAt)
 	size_t next_attempt_ = 0;
 	size_t gnss_since_opt_ = 0;
 };

@@ -45,6 +45,10 @@ class IcpTarget
 	size_t size() const { return cloud_.points.size(); }
 	IcpResult align(const std::vector<Eigen::Vector3f>& source,
 	                const Eigen::Isometry3d& guess, const IcpOptions& o) const;
+	/** The statistics of `align` (overlap, RMSE, information) of `source`
+	 * placed at T, without iterating. */
+	IcpResult evaluate(const std::vector<Eigen::Vector3f>& source,
+	                   const Eigen::Isometry3d& T, const IcpOptions& o) const;
 
    private:
 	NormalCloud cloud_;

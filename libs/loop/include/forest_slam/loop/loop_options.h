@@ -30,6 +30,10 @@ struct LoopOptions : public mrpt::config::CLoadableOptions
 	int submap_keyframes = 8;  ///< keyframes each side in the ICP clouds
 	// Verification (point-to-plane ICP with a Cauchy kernel).
 	int icp_iterations = 50;
+	/** The current submap (ICP source) is thinned to at most this many
+	 * points, evenly along the cloud (0 = all): the cost of every ICP run
+	 * and of the uniqueness re-runs scales with it. */
+	int icp_max_points = 3000;
 	double icp_start_distance_m = 1.5;  ///< correspondence gate, first round
 	double icp_final_distance_m = 0.4;  ///< correspondence gate, last round
 	double min_overlap = 0.55;          ///< fraction of source points matched
