@@ -56,7 +56,7 @@ std::vector<Eigen::Vector3f> submapCloud(const std::vector<Keyframe>& kfs,
 }
 
 std::vector<Eigen::Vector3f> thinEvenly(const std::vector<Eigen::Vector3f>& pts,
-                                       size_t max_points)
+                                        size_t max_points)
 {
 	if (max_points == 0 || pts.size() <= max_points) return pts;
 	std::vector<Eigen::Vector3f> out;
@@ -95,8 +95,8 @@ Closure verifyClosure(const std::vector<Keyframe>& kfs, const Poses& poses,
 	// Both submaps from the same resolution: the target with normals.
 	IcpTarget target(withNormals(
 	    submapCloud(kfs, poses, t_first, t_last, from, o.cloud_voxel_m)));
-	auto source = submapCloud(kfs, poses, std::max(s_first, t_last + 1), to,
-	                          to, o.cloud_voxel_m);
+	auto source = submapCloud(kfs, poses, std::max(s_first, t_last + 1), to, to,
+	                          o.cloud_voxel_m);
 	if (target.size() < 200 || source.size() < 200)
 	{
 		c.reason = "few_points";
@@ -155,7 +155,8 @@ Closure verifyClosure(const std::vector<Keyframe>& kfs, const Poses& poses,
 	// alignment or find a clearly worse one. These re-runs only have to
 	// find another alignment, not refine one: half the source points, and
 	// the alternatives are compared with the same half at r.T.
-	const auto half = thinEvenly(source, std::max<size_t>(200, source.size() / 2));
+	const auto half =
+	    thinEvenly(source, std::max<size_t>(200, source.size() / 2));
 	const IcpResult ref = target.evaluate(half, r.T, io);
 	const double shift = std::max(1.0, 1.5 * o.icp_start_distance_m);
 	for (int k = 0; k < 4; k++)

@@ -59,7 +59,7 @@ std::vector<Eigen::Vector3f> submapCloud(const std::vector<Keyframe>& kfs,
 
 /** At most `max_points` of `pts`, evenly along the vector (0 = all). */
 std::vector<Eigen::Vector3f> thinEvenly(const std::vector<Eigen::Vector3f>& pts,
-                                       size_t max_points);
+                                        size_t max_points);
 
 /** Verifies a closure between keyframes `from` (older) and `to`. */
 Closure verifyClosure(const std::vector<Keyframe>& kfs, const Poses& poses,
