@@ -3,6 +3,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <ctime>
 
 namespace forest_slam::loop
 {
@@ -13,6 +14,13 @@ double msSince(std::chrono::steady_clock::time_point t)
 	return std::chrono::duration<double, std::milli>(
 	           std::chrono::steady_clock::now() - t)
 	    .count();
+}
+
+double threadCpuMs()
+{
+	timespec ts{};
+	if (clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts) != 0) return 0;
+	return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
 }
 }  // namespace
 
@@ -86,7 +94,11 @@ void BackEnd::run()
 		{
 			std::unique_lock<std::mutex> lk(mutex_);
 			cv_.wait(lk, [&] { return stop_ || !queue_.empty(); });
-			if (queue_.empty()) return;  // stop requested, nothing left
+			if (queue_.empty())  // stop requested, nothing left
+			{
+				stats_.worker_cpu_ms = threadCpuMs();
+				return;
+			}
 			it = std::move(queue_.front());
 			queue_.pop_front();
 		}

@@ -138,7 +138,8 @@ std::string loopJson(const loop::BackEnd* b)
 	   << ", \"gnss_outliers\": " << st.gnss_outliers
 	   << ", \"verify_ms\": " << st.verify_ms
 	   << ", \"optimise_ms\": " << st.optimise_ms
-	   << ", \"wait_ms\": " << st.wait_ms;
+	   << ", \"wait_ms\": " << st.wait_ms
+	   << ", \"worker_cpu_ms\": " << st.worker_cpu_ms;
 	if (const auto e = b->mapToEnu())
 		os << ", \"map_to_enu\": {\"yaw_deg\": " << e->yaw * 180 / M_PI
 		   << ", \"x_m\": " << e->t.x() << ", \"y_m\": " << e->t.y()

@@ -40,6 +40,9 @@ struct BackEndStats
 	/** Time the pipeline waited in resultAt for the worker (the back-end
 	 * slowing the pipeline down). */
 	double wait_ms = 0;
+	/** CPU time of the worker thread (threaded back-end; 0 inline): what
+	 * the back-end costs the machine, whatever the load. */
+	double worker_cpu_ms = 0;
 };
 
 class BackEnd
