@@ -38,6 +38,7 @@ namespace forest_slam::loop
 	X(gnss_max_sigma_m)          \
 	X(gnss_gate_sigma)           \
 	X(gnss_min_baseline_m)       \
+	X(gnss_correlation_s)        \
 	X(inject_yaw_deg_per_m)      \
 	X(inject_z_m_per_m)          \
 	X(inject_every_m)
@@ -73,11 +74,11 @@ void LoopOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 	positive(inject_every_m, "inject_every_m");
 	if (!(min_travel_m >= 0) || !(search_drift_fraction >= 0) ||
 	    !(odom_sigma_t_per_m >= 0) || !(odom_sigma_r_deg_per_m >= 0) ||
-	    !(gnss_min_baseline_m >= 0))
+	    !(gnss_min_baseline_m >= 0) || !(gnss_correlation_s >= 0))
 		throw core::ConfigError(
 		    where +
 		    "min_travel_m, search_drift_fraction, odom_sigma_*_per_m and "
-		    "gnss_min_baseline_m must be >= 0");
+		    "gnss_min_baseline_m, gnss_correlation_s must be >= 0");
 	if (!(min_overlap > 0 && min_overlap <= 1) ||
 	    !(min_information_ratio >= 0 && min_information_ratio < 1))
 		throw core::ConfigError(where +

@@ -60,6 +60,9 @@ struct LoopOptions : public mrpt::config::CLoadableOptions
 	double gnss_max_sigma_m = 5.0;      ///< fixes worse than this are not used
 	double gnss_gate_sigma = 4.0;       ///< residual beyond: outlier, dropped
 	double gnss_min_baseline_m = 15.0;  ///< fixes must span this (heading)
+	/** Time constant of the GNSS error [s] (0: white): fixes closer in time
+	 * than ~2x this are not independent; their sigmas are inflated. */
+	double gnss_correlation_s = 20.0;
 	// Test bench: odometry drift injected into the odometry (0 = off).
 	double inject_yaw_deg_per_m = 0;
 	double inject_z_m_per_m = 0;

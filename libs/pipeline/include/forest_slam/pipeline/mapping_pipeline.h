@@ -193,6 +193,7 @@ class MappingPipeline
 		Eigen::Vector3d enu, sigma, antenna_on_vehicle;
 	};
 	std::deque<PendingFix> gnss_pending_;
+	double last_gnss_fix_s_ = -1;  ///< time of the last fix passed on
 	struct GnssOrigin;
 	std::shared_ptr<GnssOrigin> gnss_origin_;
 	void initBackEnd();
