@@ -15,14 +15,15 @@ OUT=$BUILD/bench-loop
 mkdir -p "$OUT"
 
 # ini_with_loop BASE_INI "key = value\n..." > FILE: the shipped INI with its
-# [loop] enabled and the given keys.
+# [loop] enabled (whatever the shipped value) and the given keys.
 ini_with_loop() {
   python3 - "$1" "$2" <<'PY'
-import sys
+import re, sys
 t = open(sys.argv[1]).read()
-k = "\nenabled = false\n"
-assert k in t, "no [loop] enabled = false in " + sys.argv[1]
-print(t.replace(k, "\nenabled = true\n" + sys.argv[2].replace("\\n", "\n") + "\n", 1))
+m = re.search(r"\n\[loop\]\n(?:.*\n)*?enabled = \w+\n", t)
+assert m, "no [loop] enabled line in " + sys.argv[1]
+keys = "enabled = true\n" + sys.argv[2].replace("\\n", "\n") + "\n"
+print(t[:m.end()].rsplit("enabled = ", 1)[0] + keys + t[m.end():])
 PY
 }
 

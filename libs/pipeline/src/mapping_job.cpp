@@ -366,6 +366,8 @@ std::vector<std::string> writeOutputs(const MappingPipeline& p,
 	fig.scans = s.scans_mapped;
 	fig.data_seconds = s.dataSeconds();
 	fig.wall_seconds = r.wall_seconds;
+	if (p.backEnd())
+		fig.loop_closures = static_cast<int>(p.backEnd()->stats().closures);
 	// trajectory, forest.map, trees.csv (the tree layer) and the rest.
 	const auto out = outputs::writeRunOutputs(
 		{p.trajectory(), p.forestMap(), p.outputCollector(), cfg.outputs,
