@@ -217,15 +217,32 @@ void CForestMap::insertPoints(const std::vector<Eigen::Vector3f>& pts,
 	// A scan's consecutive points almost always share a 20 m submap: look
 	// it up again only when the key changes (unordered_map elements keep
 	// their address while others are added).
+	// The voxel tables outgrow the caches: the slot of the point kAhead
+	// further on is prefetched (in the current submap, where it almost
+	// always falls), so the keys are computed first.
+	thread_local std::vector<Eigen::Vector3f> q;
+	thread_local std::vector<uint64_t> key;
+	q.clear();
+	key.clear();
+	// Keys as the submaps' clouds compute them (same voxel size).
+	const VoxelCloud probe(
+	    static_cast<float>(edges ? opts_.edge_voxel_m : opts_.planar_voxel_m));
+	for (const auto& p : pts)
+		if (p.allFinite())
+		{
+			q.push_back(T * p);
+			key.push_back(probe.keyOf(q.back()));
+		}
+	constexpr size_t kAhead = 16;
 	SubmapKey last{};
 	Submap* sm = nullptr;
-	for (const auto& p : pts)
+	for (size_t n = 0; n < q.size(); n++)
 	{
-		if (!p.allFinite()) continue;
-		const Eigen::Vector3f q = T * p;
-		const SubmapKey k = submapKeyOf(q);
-		if (!sm || !(k == last)) sm = &submapFor(q), last = k;
-		(edges ? sm->edge : sm->planar).insert(q);
+		const SubmapKey k = submapKeyOf(q[n]);
+		if (!sm || !(k == last)) sm = &submapFor(q[n]), last = k;
+		VoxelCloud& cloud = edges ? sm->edge : sm->planar;
+		if (n + kAhead < q.size()) cloud.prefetch(key[n + kAhead]);
+		cloud.insert(key[n], q[n]);
 	}
 }
 

@@ -25,10 +25,7 @@ size_t VoxelCloud::memoryBytes() const
 
 void VoxelCloud::insert(const Eigen::Vector3f& p)
 {
-	if (!p.allFinite()) return;
-	auto& a = voxels_[packed(voxelKeyOf(p, inv_size_))];
-	a.sum += p;
-	a.count++;
+	if (p.allFinite()) insert(keyOf(p), p);
 }
 
 void VoxelCloud::setVoxel(const VoxelKey& k, const Accum& a)

@@ -53,6 +53,7 @@ LidarOdometry::LidarOdometry(const OdometryConfig& cfg, map::CForestMap& map)
       local_map_(cfg.local_map, cfg.registration.plane_flatness),
       map_(map),
       inserter_(map, cfg.odometry.async_map_insert ? 4 : 0),
+      local_worker_(cfg.odometry.async_map_insert ? 2 : 0),
       lattice_(cfg.ground)
 {
 }
@@ -253,17 +254,17 @@ void LidarOdometry::insert(const Prepared& s, const Eigen::Isometry3d& pose)
 		(s.feats.smoothness[i] > cfg_.features.edge_threshold ? map_edges
 		                                                      : map_planar)
 		    .push_back(s.points[i].xyz);
-	// The odometry's local map in the map frame; the CForestMap gets the
-	// sensor-frame points on the inserter's thread.
-	const Eigen::Isometry3f T = pose.cast<float>();
-	std::vector<Eigen::Vector3f> local_edges(map_edges.size()),
-	    local_planar(map_planar.size());
-	for (size_t i = 0; i < map_edges.size(); i++)
-		local_edges[i] = T * map_edges[i];
-	for (size_t i = 0; i < map_planar.size(); i++)
-		local_planar[i] = T * map_planar[i];
+	// The odometry's local map in the map frame, and the CForestMap with the
+	// sensor-frame points, each on its worker thread.
+	local_worker_.push(
+	    [this, T = Eigen::Isometry3f(pose.cast<float>()), e = map_edges,
+	     p = map_planar]() mutable
+	    {
+		    for (auto& x : e) x = T * x;
+		    for (auto& x : p) x = T * x;
+		    local_map_.insert(e, p);
+	    });
 	inserter_.push(std::move(map_edges), std::move(map_planar), pose);
-	local_map_.insert(local_edges, local_planar);
 }
 
 OdometryStep LidarOdometry::processScan(const core::ScanPoints& scan)
@@ -354,6 +355,7 @@ OdometryStep LidarOdometry::processScan(const core::ScanPoints& scan)
 	// 6. Scan-to-map registration.
 	auto t = Clock::now();
 	Eigen::Isometry3d pose = predicted;
+	local_worker_.flush();  // the last scan is in the local map
 	if (scans_ > 0 && !local_map_.empty())
 	{
 		// Without the gyro the predicted rotation is as uncertain as the
@@ -395,6 +397,7 @@ OdometryStep LidarOdometry::processScan(const core::ScanPoints& scan)
 				local_map_.clear();
 				insert(prepare(*first_scan_, m0, last_pose_, ignored),
 				       last_pose_);
+				local_worker_.flush();
 				step.registration =
 				    registerFeatures(local_map_, cur.edges, cur.planar,
 				                     predicted, cfg_.registration, priors);
@@ -502,7 +505,8 @@ OdometryStep LidarOdometry::processScan(const core::ScanPoints& scan)
 	// 7. Map update and motion model.
 	insert(cur, pose);
 	if (scans_ % cfg_.odometry.prune_every_scans == 0)
-		local_map_.prune(pose.translation());
+		local_worker_.push([this, c = Eigen::Vector3d(pose.translation())]
+		                   { local_map_.prune(c); });
 	if (scans_ > 0)
 	{
 		last_period_s_ = std::max(1e-3, stamp - last_stamp_s_);
@@ -545,6 +549,7 @@ void LidarOdometry::applyCorrection(const Eigen::Isometry3d& C)
 		q.p = C * q.p;
 		q.heading_rad += headingOf(C.linear());
 	}
+	local_worker_.flush();
 	local_map_.transform(C);
 }
 

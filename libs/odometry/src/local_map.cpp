@@ -91,8 +91,11 @@ Shape shapeOf(const std::vector<std::pair<float, Eigen::Vector3f>>& pts)
 void LocalMap::addPoint(PointCell& c, float min_d2, const Eigen::Vector3f& p)
 {
 	if (static_cast<int>(c.pts.size()) >= o_.max_points_per_cell) return;
-	for (const auto& q : c.pts)
-		if ((q - p).squaredNorm() < min_d2) return;
+	// Newest first: the last scans saw this place from about here, so a
+	// point within the spacing is most often among them (the same verdict
+	// in any order; most points of a scan are turned away).
+	for (auto q = c.pts.rbegin(); q != c.pts.rend(); ++q)
+		if ((*q - p).squaredNorm() < min_d2) return;
 	c.pts.push_back(p);
 }
 
@@ -104,18 +107,44 @@ void LocalMap::insert(const std::vector<Eigen::Vector3f>& edges,
 	const float ed2 = static_cast<float>(o_.edge_spacing_m * o_.edge_spacing_m);
 	const double sc = o_.coarse_voxel_m;
 	std::vector<Key> touched;  // coarse voxels to refit
-	for (const auto& p : planar)
+	// Keys first, then the insertions with the table slots kAhead points
+	// further on prefetched: the probes missed the caches (half of this
+	// function's time).
+	thread_local std::vector<Key> cell_keys, coarse_keys;
+	thread_local std::vector<uint32_t> index;
+	cell_keys.clear();
+	coarse_keys.clear();
+	index.clear();
+	for (uint32_t n = 0; n < planar.size(); n++)
 	{
+		const auto& p = planar[n];
 		if (!p.allFinite()) continue;
-		addPoint(planar_[cellKey(p)], pd2, p);
+		index.push_back(n);
+		cell_keys.push_back(cellKey(p));
+		if (sc > 0)
+			coarse_keys.push_back(
+			    key(static_cast<int64_t>(std::floor(p.x() / sc)),
+			        static_cast<int64_t>(std::floor(p.y() / sc)),
+			        static_cast<int64_t>(std::floor(p.z() / sc))));
+	}
+	constexpr size_t kAhead = 16;
+	for (size_t n = 0; n < index.size(); n++)
+	{
+		if (n + kAhead < index.size())
+		{
+			planar_.prefetch(cell_keys[n + kAhead]);
+			if (sc > 0) coarse_.prefetch(coarse_keys[n + kAhead]);
+		}
+		const auto& p = planar[index[n]];
+		addPoint(planar_[cell_keys[n]], pd2, p);
 		if (sc <= 0) continue;
-		const int64_t i = static_cast<int64_t>(std::floor(p.x() / sc)),
-		              j = static_cast<int64_t>(std::floor(p.y() / sc)),
-		              k = static_cast<int64_t>(std::floor(p.z() / sc));
 		bool fresh = false;
-		const Key kv = key(i, j, k);
+		const Key kv = coarse_keys[n];
 		auto& v = coarse_.tryEmplace(kv, &fresh);
-		if (fresh) v.origin = Eigen::Vector3d(i * sc, j * sc, k * sc);
+		if (fresh)
+			v.origin = Eigen::Vector3d(core::unpackCellIndex(kv, 0) * sc,
+			                           core::unpackCellIndex(kv, 1) * sc,
+			                           core::unpackCellIndex(kv, 2) * sc);
 		if (v.n >= o_.max_points_per_voxel) continue;
 		const Eigen::Vector3d q = p.cast<double>() - v.origin;
 		v.sum += q;

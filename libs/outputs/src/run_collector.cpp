@@ -30,7 +30,8 @@ RunCollector::RunCollector(const OutputOptions& o, double min_range_m,
     : o_(o),
       min_range_m_(static_cast<float>(min_range_m)),
       max_range_m_(static_cast<float>(max_range_m)),
-      dense_(o.dense_voxel_m, o.spill_to_disk ? o.dense_tile_m : 0)
+      dense_(o.dense_voxel_m, o.spill_to_disk ? o.dense_tile_m : 0),
+      worker_(2)
 {
 	// At once, so a bad spill_dir stops the run before it starts.
 	if (o.spill_to_disk) spill();
@@ -44,6 +45,7 @@ core::SpillFile& RunCollector::spill()
 
 std::vector<Eigen::Vector3f> RunCollector::keyframeCloud(size_t i) const
 {
+	worker_.flush();
 	const auto& kf = keyframes_.at(i);
 	if (!kf.spilled) return kf.points;
 	std::vector<Eigen::Vector3f> pts;
@@ -53,6 +55,7 @@ std::vector<Eigen::Vector3f> RunCollector::keyframeCloud(size_t i) const
 
 size_t RunCollector::spilledBytes() const
 {
+	worker_.flush();
 	return spill_ ? spill_->size() : 0;
 }
 
@@ -67,13 +70,15 @@ void RunCollector::addScan(const core::ScanPoints& scan,
 		    "RunCollector::addScan: " + std::to_string(deskewed.size()) +
 		    " deskewed points for a scan of " +
 		    std::to_string(scan.points.size()));
-	collect(scan, pose, &deskewed, nullptr);
+	worker_.push([this, scan, pose, deskewed]
+	             { collect(scan, pose, &deskewed, nullptr); });
 }
 
 void RunCollector::addScan(
     const core::ScanPoints& scan, const core::StampedPose& pose,
     const std::function<bool(double, Eigen::Isometry3d&)>& pose_at)
 {
+	worker_.flush();  // pose_at reads the caller's state: collected here
 	collect(scan, pose, nullptr, &pose_at);
 }
 
@@ -201,6 +206,7 @@ void RunCollector::collect(
 
 size_t RunCollector::keyframeBytes() const
 {
+	worker_.flush();
 	size_t n = core::vectorBytes(keyframes_);
 	for (const auto& k : keyframes_) n += core::vectorBytes(k.points);
 	return n;

@@ -49,6 +49,20 @@ class VoxelCloud
 	float voxelSize() const { return voxel_m_; }
 
 	void insert(const Eigen::Vector3f& p);
+	/** Bulk insertion in two steps: the key of a finite point, then the
+	 * point with its key; in between the caller prefetches the keys a few
+	 * points ahead (FlatHashMap::prefetch). Same result as insert(). */
+	uint64_t keyOf(const Eigen::Vector3f& p) const
+	{
+		return packed(voxelKeyOf(p, inv_size_));
+	}
+	void insert(uint64_t key, const Eigen::Vector3f& p)
+	{
+		auto& a = voxels_[key];
+		a.sum += p;
+		a.count++;
+	}
+	void prefetch(uint64_t key) const { voxels_.prefetch(key); }
 	size_t size() const { return voxels_.size(); }
 	bool empty() const { return voxels_.empty(); }
 	void clear() { voxels_.clear(); }

@@ -9,6 +9,7 @@
 //   scan into the local map and the CForestMap -> update velocity.
 #include <forest_slam/cluster/hierarchical_kmeans.h>
 #include <forest_slam/core/scan_points.h>
+#include <forest_slam/core/serial_worker.h>
 #include <forest_slam/core/trajectory.h>
 #include <forest_slam/features/feature_extractor.h>
 #include <forest_slam/ground/ground_lattice.h>
@@ -165,7 +166,12 @@ class LidarOdometry
 	void flushMap() { inserter_.flush(); }
 
 	const ground::GroundLattice& groundLattice() const { return lattice_; }
-	const LocalMap& localMap() const { return local_map_; }
+	/** The odometry's local map (waits for the last scan's insertion). */
+	const LocalMap& localMap() const
+	{
+		local_worker_.flush();
+		return local_map_;
+	}
 	size_t scansProcessed() const { return scans_; }
 	/** The last scan's finite points (1:1 with its ScanPoints when the
 	 * caller dropped non-finite ones) deskewed to its first firing, in the
@@ -209,6 +215,10 @@ class LidarOdometry
 	bool first_scan_imu_ = false;  ///< the first scan was deskewed with the IMU
 	map::CForestMap& map_;
 	MapInserter inserter_;  ///< after map_: joined before the map goes
+	/** Inserts each scan into local_map_ (and prunes it) while the next
+	 * scan is read, deskewed, labelled and clustered, which do not read the
+	 * local map; flushed before anything does. After local_map_. */
+	mutable core::SerialWorker local_worker_;
 	ground::GroundLattice lattice_;
 	Eigen::Isometry3d initial_pose_ = Eigen::Isometry3d::Identity();
 	Eigen::Isometry3d last_pose_ = Eigen::Isometry3d::Identity();

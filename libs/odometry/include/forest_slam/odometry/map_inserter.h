@@ -4,14 +4,10 @@
 // sixth of a scan's time and nothing in the odometry reads the CForestMap
 // (registration uses its own LocalMap). Readers of the map call flush()
 // first.
+#include <forest_slam/core/serial_worker.h>
 #include <forest_slam/map/forest_map.h>
 
 #include <Eigen/Geometry>
-#include <condition_variable>
-#include <deque>
-#include <exception>
-#include <mutex>
-#include <thread>
 #include <vector>
 
 namespace forest_slam::odometry
@@ -35,25 +31,11 @@ class MapInserter
 	          const Eigen::Isometry3d& sensor_to_map);
 	/** Returns when every queued scan is in the map; rethrows a worker
 	 * error. */
-	void flush();
+	void flush() { worker_.flush(); }
 
    private:
-	struct Job
-	{
-		std::vector<Eigen::Vector3f> edges, planar;
-		Eigen::Isometry3d pose;
-	};
-	void run();
-	void rethrow();
-
 	map::CForestMap& map_;
-	const size_t max_pending_;
-	std::mutex m_;
-	std::condition_variable wake_, done_;
-	std::deque<Job> jobs_;
-	bool busy_ = false, stop_ = false;
-	std::exception_ptr error_;
-	std::thread worker_;
+	core::SerialWorker worker_;  ///< last: joined before the rest goes
 };
 
 }  // namespace forest_slam::odometry

@@ -8,6 +8,7 @@
 //  - GNSS epochs (report: GNSS coverage along the path);
 //  - the odometry's ground lattice (classification, DTM) when there is one.
 #include <forest_slam/core/scan_points.h>
+#include <forest_slam/core/serial_worker.h>
 #include <forest_slam/core/trajectory.h>
 #include <forest_slam/outputs/dense_map.h>
 #include <forest_slam/outputs/output_options.h>
@@ -69,7 +70,10 @@ class RunCollector
 	 * outputs hold what was registered. Interpolating between consecutive
 	 * scan poses instead misses the sway of a handheld rig within the sweep
 	 * (stems 15 m away blurred by centimetres). `lattice` is the odometry's
-	 * ground lattice (may be null); it must outlive this object. */
+	 * ground lattice (may be null); it must outlive this object.
+	 * The scan is copied and collected on the collector's worker thread
+	 * (every reader below waits for it); an error of that work is rethrown
+	 * by the next call. */
 	void addScan(const core::ScanPoints& scan, const core::StampedPose& pose,
 	             const std::vector<Eigen::Vector3f>& deskewed,
 	             const ground::GroundLattice* lattice);
@@ -84,25 +88,42 @@ class RunCollector
 
 	/** Poses and times; the clouds through keyframeCloud (they may be on
 	 * disk). */
-	const Keyframes& keyframes() const { return keyframes_; }
+	const Keyframes& keyframes() const
+	{
+		worker_.flush();
+		return keyframes_;
+	}
 	/** The points of keyframe i (sensor frame), read back if spilled. */
 	std::vector<Eigen::Vector3f> keyframeCloud(size_t i) const;
 	/** Loop correction: the keyframe's sensor pose after the back-end. */
 	void setKeyframePose(size_t i, const Eigen::Isometry3d& T)
 	{
+		worker_.flush();
 		keyframes_.at(i).sensor_pose = T;
 	}
-	const DenseMap& dense() const { return dense_; }
+	const DenseMap& dense() const
+	{
+		worker_.flush();
+		return dense_;
+	}
 	const std::vector<GnssEpoch>& gnss() const { return gnss_; }
 	const ground::GroundLattice* groundLattice() const { return lattice_; }
 	const OutputOptions& options() const { return o_; }
-	size_t scans() const { return scans_; }
+	size_t scans() const
+	{
+		worker_.flush();
+		return scans_;
+	}
 	/** Heap bytes of the keyframe clouds held in memory. */
 	size_t keyframeBytes() const;
 	/** Bytes moved to the spill file (dense tiles, keyframe clouds). */
 	size_t spilledBytes() const;
 	/** CPU time spent in addScan, total [s]. */
-	double collectSeconds() const { return collect_s_; }
+	double collectSeconds() const
+	{
+		worker_.flush();
+		return collect_s_;
+	}
 
    private:
 	OutputOptions o_;
@@ -122,6 +143,10 @@ class RunCollector
 	std::vector<uint8_t> column_done_;
 	std::vector<Eigen::Vector3f> map_xyz_;  // per scan, reused
 	std::vector<uint32_t> kept_;
+	/** Runs collect() for addScan(..., deskewed, ...) off the mapping
+	 * thread: the dense-map voxel table was a twelfth of a mapping run's
+	 * CPU. Last member: joined before the rest goes. */
+	mutable core::SerialWorker worker_;
 
 	/** sensor(first firing) <- sensor(firing of p), once per column: from
 	 * pose_at when it knows the time, else `motion` over the sweep. */

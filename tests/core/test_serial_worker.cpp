@@ -1,0 +1,110 @@
+#include <forest_slam/core/serial_worker.h>
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <chrono>
+#include <stdexcept>
+#include <thread>
+#include <vector>
+
+using forest_slam::core::SerialWorker;
+
+TEST(SerialWorker, RunsJobsInPushOrderOffTheCallersThread)
+{
+	std::vector<int> order;
+	std::vector<std::thread::id> ran_on;
+	SerialWorker w(2);
+	EXPECT_TRUE(w.threaded());
+	for (int i = 0; i < 50; i++)
+		w.push(
+		    [&, i]
+		    {
+			    // Early jobs are slow: a later one must still wait its turn.
+			    if (i < 3)
+				    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+			    order.push_back(i);
+			    ran_on.push_back(std::this_thread::get_id());
+		    });
+	w.flush();
+	ASSERT_EQ(order.size(), 50u);
+	for (int i = 0; i < 50; i++) EXPECT_EQ(order[i], i);
+	for (const auto& id : ran_on) EXPECT_NE(id, std::this_thread::get_id());
+}
+
+TEST(SerialWorker, ZeroPendingRunsInline)
+{
+	SerialWorker w(0);
+	EXPECT_FALSE(w.threaded());
+	std::thread::id ran_on;
+	int value = 0;
+	w.push(
+	    [&]
+	    {
+		    ran_on = std::this_thread::get_id();
+		    value = 7;
+	    });
+	EXPECT_EQ(value, 7);  // done before push() returned
+	EXPECT_EQ(ran_on, std::this_thread::get_id());
+}
+
+TEST(SerialWorker, BoundsTheQueue)
+{
+	// With one job pending at most, push() blocks until the worker takes
+	// the previous one: never more than 2 jobs (1 queued + 1 running) are
+	// pushed and unfinished.
+	SerialWorker w(1);
+	std::atomic<int> started{0}, finished{0};
+	int max_unfinished = 0;
+	for (int i = 0; i < 20; i++)
+	{
+		w.push(
+		    [&]
+		    {
+			    started++;
+			    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+			    finished++;
+		    });
+		max_unfinished = std::max(max_unfinished, i + 1 - finished.load());
+	}
+	w.flush();
+	EXPECT_EQ(finished.load(), 20);
+	EXPECT_LE(max_unfinished, 2);
+}
+
+TEST(SerialWorker, RethrowsAJobErrorOnceAndDropsTheJobsAfterIt)
+{
+	SerialWorker w(4);
+	int ran_after = 0;
+	w.push([] { throw std::runtime_error("disk full"); });
+	w.push([&] { ran_after++; });
+	try
+	{
+		w.flush();
+		FAIL() << "flush() should rethrow the job's error";
+	}
+	catch (const std::runtime_error& e)
+	{
+		EXPECT_STREQ(e.what(), "disk full");
+	}
+	EXPECT_EQ(ran_after, 0);
+	// Reported once: the worker goes on with new jobs.
+	w.push([&] { ran_after++; });
+	w.flush();
+	EXPECT_EQ(ran_after, 1);
+}
+
+TEST(SerialWorker, DestructorRunsTheQueuedJobs)
+{
+	std::atomic<int> done{0};
+	{
+		SerialWorker w(8);
+		for (int i = 0; i < 8; i++)
+			w.push(
+			    [&]
+			    {
+				    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+				    done++;
+			    });
+	}
+	EXPECT_EQ(done.load(), 8);
+}
