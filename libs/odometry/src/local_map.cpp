@@ -5,6 +5,10 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 namespace forest_slam::odometry
 {
@@ -14,7 +18,7 @@ size_t LocalMap::memoryBytes() const
 	    planar_.memoryBytes() + edges_.memoryBytes() + coarse_.memoryBytes();
 	for (const auto* g : {&planar_, &edges_})
 		g->forEach([&](Key, const PointCell& c)
-		           { n += core::vectorBytes(c.pts); });
+		           { n += core::vectorBytes(c.blocks); });
 	return n;
 }
 
@@ -88,15 +92,62 @@ Shape shapeOf(const std::vector<std::pair<float, Eigen::Vector3f>>& pts)
 }
 }  // namespace
 
+namespace
+{
+/** Squared distances from x to the four points of a block (x0..x3 y0..y3
+ * z0..z3) into d2; whether any is <= limit. */
+inline bool blockWithin(const float* blk, const Eigen::Vector3f& x, float limit,
+                        float d2[4])
+{
+#if defined(__SSE2__)
+	const __m128 dx = _mm_sub_ps(_mm_loadu_ps(blk), _mm_set1_ps(x.x()));
+	const __m128 dy = _mm_sub_ps(_mm_loadu_ps(blk + 4), _mm_set1_ps(x.y()));
+	const __m128 dz = _mm_sub_ps(_mm_loadu_ps(blk + 8), _mm_set1_ps(x.z()));
+	const __m128 d = _mm_add_ps(
+	    _mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)), _mm_mul_ps(dz, dz));
+	_mm_storeu_ps(d2, d);
+	return _mm_movemask_ps(_mm_cmple_ps(d, _mm_set1_ps(limit))) != 0;
+#else
+	bool any = false;
+	for (int l = 0; l < 4; l++)
+	{
+		const float dx = blk[l] - x.x(), dy = blk[4 + l] - x.y(),
+		            dz = blk[8 + l] - x.z();
+		d2[l] = dx * dx + dy * dy + dz * dz;
+		any |= d2[l] <= limit;
+	}
+	return any;
+#endif
+}
+}  // namespace
+
+void LocalMap::PointCell::push(const Eigen::Vector3f& p)
+{
+	if (n % 4 == 0)
+		blocks.insert(blocks.end(), 12, std::numeric_limits<float>::infinity());
+	float* b = &blocks[(n / 4) * 12];
+	const uint32_t l = n % 4;
+	b[l] = p.x();
+	b[4 + l] = p.y();
+	b[8 + l] = p.z();
+	n++;
+}
+
+bool LocalMap::PointCell::anyWithin(const Eigen::Vector3f& p, float d2) const
+{
+	if (!(d2 > 0)) return false;  // no spacing
+	// Strictly closer than the spacing: the largest float below d2.
+	const float limit = std::nextafter(d2, 0.f);
+	float ignored[4];
+	for (uint32_t b = 0; b < n; b += 4)
+		if (blockWithin(&blocks[3 * b], p, limit, ignored)) return true;
+	return false;
+}
+
 void LocalMap::addPoint(PointCell& c, float min_d2, const Eigen::Vector3f& p)
 {
-	if (static_cast<int>(c.pts.size()) >= o_.max_points_per_cell) return;
-	// Newest first: the last scans saw this place from about here, so a
-	// point within the spacing is most often among them (the same verdict
-	// in any order; most points of a scan are turned away).
-	for (auto q = c.pts.rbegin(); q != c.pts.rend(); ++q)
-		if ((*q - p).squaredNorm() < min_d2) return;
-	c.pts.push_back(p);
+	if (static_cast<int>(c.n) >= o_.max_points_per_cell) return;
+	if (!c.anyWithin(p, min_d2)) c.push(p);
 }
 
 void LocalMap::insert(const std::vector<Eigen::Vector3f>& edges,
@@ -168,12 +219,13 @@ void LocalMap::transform(const Eigen::Isometry3d& T)
 	edges_.forEach(
 	    [&](Key, const PointCell& c)
 	    {
-		    for (const auto& p : c.pts) edges.push_back(Tf * p);
+		    for (uint32_t i = 0; i < c.n; i++) edges.push_back(Tf * c.point(i));
 	    });
 	planar_.forEach(
 	    [&](Key, const PointCell& c)
 	    {
-		    for (const auto& p : c.pts) planar.push_back(Tf * p);
+		    for (uint32_t i = 0; i < c.n; i++)
+			    planar.push_back(Tf * c.point(i));
 	    });
 	clear();
 	insert(edges, planar);
@@ -189,9 +241,9 @@ void LocalMap::prune(const Eigen::Vector3d& centre)
 		g->eraseIf(
 		    [&](Key, const PointCell& c)
 		    {
-			    return c.pts.empty() || (c.pts.front().cast<double>() - centre)
-			                                    .head<2>()
-			                                    .squaredNorm() > r2;
+			    return c.n == 0 || (c.point(0).cast<double>() - centre)
+			                               .head<2>()
+			                               .squaredNorm() > r2;
 		    });
 }
 
@@ -303,18 +355,26 @@ void LocalMap::knn(const PointGrid& g, const Eigen::Vector3f& x, int k,
 		const PointCell* cell =
 		    g.find(key(c0[0] + c.di[0], c0[1] + c.di[1], c0[2] + c.di[2]));
 		if (!cell) continue;
-		for (const auto& p : cell->pts)
+		// Four distances at a time; the points within the current k-th
+		// distance are then taken in storage order, as one at a time would.
+		for (uint32_t b = 0; b < cell->n; b += 4)
 		{
-			const float d2 = (p - x).squaredNorm();
-			if (d2 > worst) continue;
-			if (static_cast<int>(best.size()) < k)
-				best.emplace_back(d2, p);
-			else
-				best.back() = {d2, p};
-			for (size_t n = best.size() - 1;
-			     n > 0 && best[n].first < best[n - 1].first; n--)
-				std::swap(best[n], best[n - 1]);
-			if (static_cast<int>(best.size()) == k) worst = best.back().first;
+			float d2[4];
+			if (!blockWithin(&cell->blocks[3 * b], x, worst, d2)) continue;
+			for (uint32_t l = 0; l < 4; l++)
+			{
+				if (!(d2[l] <= worst)) continue;
+				const Eigen::Vector3f p = cell->point(b + l);
+				if (static_cast<int>(best.size()) < k)
+					best.emplace_back(d2[l], p);
+				else
+					best.back() = {d2[l], p};
+				for (size_t n = best.size() - 1;
+				     n > 0 && best[n].first < best[n - 1].first; n--)
+					std::swap(best[n], best[n - 1]);
+				if (static_cast<int>(best.size()) == k)
+					worst = best.back().first;
+			}
 		}
 	}
 }
