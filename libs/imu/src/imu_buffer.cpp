@@ -37,10 +37,7 @@ bool ImuBuffer::covers(double t0, double t1, double max_gap_s) const
 	if (samples_.empty() || samples_.front().s.t_s > t0 ||
 	    samples_.back().s.t_s < t1)
 		return false;
-	auto it =
-	    std::upper_bound(samples_.begin(), samples_.end(), t0,
-	                     [](double t, const Entry& e) { return t < e.s.t_s; });
-	if (it != samples_.begin()) --it;
+	auto it = atOrBefore(t0);
 	for (; it != samples_.end() && it->s.t_s < t1; ++it)
 	{
 		const auto nx = std::next(it);
@@ -54,10 +51,7 @@ Eigen::Quaterniond ImuBuffer::rotationBetween(double t0, double t1) const
 {
 	Eigen::Quaterniond q = Eigen::Quaterniond::Identity();
 	if (samples_.size() < 2 || !(t1 > t0)) return q;
-	auto it =
-	    std::upper_bound(samples_.begin(), samples_.end(), t0,
-	                     [](double t, const Entry& e) { return t < e.s.t_s; });
-	if (it != samples_.begin()) --it;
+	auto it = atOrBefore(t0);
 	// The bias is the filter's latest estimate: it changes slowly.
 	const Eigen::Vector3d bias = samples_.back().bias;
 	for (; std::next(it) != samples_.end() && it->s.t_s < t1; ++it)
@@ -80,10 +74,7 @@ AccelIntegral ImuBuffer::integrateAcceleration(
 {
 	AccelIntegral out;
 	if (samples_.size() < 2 || !(t1 > t0)) return out;
-	auto it =
-	    std::upper_bound(samples_.begin(), samples_.end(), t0,
-	                     [](double t, const Entry& e) { return t < e.s.t_s; });
-	if (it != samples_.begin()) --it;
+	auto it = atOrBefore(t0);
 	const Eigen::Vector3d bias = samples_.back().bias;
 	Eigen::Quaterniond q = Eigen::Quaterniond::Identity();  // R_t0_u
 	// Specific force of a sample blended to time u inside [a, b].
@@ -122,11 +113,8 @@ AccelIntegral ImuBuffer::integrateAcceleration(
 bool ImuBuffer::attitudeAt(double t_s, Eigen::Quaterniond& q) const
 {
 	if (samples_.empty() || !filter_.initialised()) return false;
-	auto it =
-	    std::upper_bound(samples_.begin(), samples_.end(), t_s,
-	                     [](double t, const Entry& e) { return t < e.s.t_s; });
-	if (it == samples_.begin()) return false;
-	--it;
+	auto it = atOrBefore(t_s);
+	if (it->s.t_s > t_s) return false;  // every sample is after t_s
 	if (t_s - it->s.t_s > kMaxStep_s || it->settling) return false;
 	if (!it->levelled)
 	{

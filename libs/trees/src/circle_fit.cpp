@@ -10,6 +10,44 @@ namespace forest_slam::trees
 {
 namespace
 {
+enum class LmStep
+{
+	Improved,   ///< x moved, the cost dropped
+	Converged,  ///< same, by a negligible step: stop iterating
+	Stuck,      ///< ten dampings and no lower cost: stop iterating
+	Failed      ///< the solve gave non-finite values
+};
+/** One Levenberg–Marquardt step of a circle fit on the normal equations
+ * H dx = -g (x[2] is the radius and must stay positive): the damping grows
+ * tenfold until the cost does not rise, and shrinks after a step taken. */
+template <class Mat, class Vec, class Cost>
+LmStep dampedStep(const Mat& H, const Vec& g, double& lambda, Vec& x,
+                  const Cost& cost)
+{
+	const double c0 = cost(x);
+	for (int tries = 0; tries < 10; tries++)
+	{
+		Mat Hd = H;
+		Hd.diagonal() *= (1 + lambda);
+		const Vec step = Hd.ldlt().solve(-g);
+		if (!step.allFinite()) return LmStep::Failed;
+		const Vec xn = x + step;
+		if (!(xn[2] > 0))
+		{
+			lambda *= 10;
+			continue;
+		}
+		if (cost(xn) <= c0)
+		{
+			x = xn;
+			lambda = std::max(lambda / 10, 1e-9);
+			return step.norm() < 1e-9 ? LmStep::Converged : LmStep::Improved;
+		}
+		lambda *= 10;
+	}
+	return LmStep::Stuck;
+}
+
 double median(std::vector<double> v)
 {
 	if (v.empty()) return 0;
@@ -258,32 +296,11 @@ bool refineCircleAlongRays(const Points2D& p, const Points2D& dir, Circle& c,
 			H(j, j) += prior;
 			g[j] += prior * x[j];
 		}
-		const double c0 = cost(x, s);
-		bool improved = false;
-		for (int tries = 0; tries < 10 && !improved; tries++)
-		{
-			Eigen::Matrix<double, 5, 5> Hd = H;
-			Hd.diagonal() *= (1 + lambda);
-			const Eigen::Matrix<double, 5, 1> step = Hd.ldlt().solve(-g);
-			if (!step.allFinite()) return false;
-			const Eigen::Matrix<double, 5, 1> xn = x + step;
-			if (!(xn[2] > 0))
-			{
-				lambda *= 10;
-				continue;
-			}
-			if (cost(xn, s) <= c0)
-			{
-				const double dx = step.norm();
-				x = xn;
-				lambda = std::max(lambda / 10, 1e-9);
-				improved = true;
-				if (dx < 1e-9) it = o.max_iterations;
-			}
-			else
-				lambda *= 10;
-		}
-		if (!improved) break;
+		const LmStep st = dampedStep(H, g, lambda, x,
+		                             [&](const auto& v) { return cost(v, s); });
+		if (st == LmStep::Failed) return false;
+		if (st == LmStep::Stuck) break;
+		if (st == LmStep::Converged) it = o.max_iterations;
 	}
 	c = Circle{{x[0], x[1]}, x[2]};
 	if (drift) *drift = x.tail<2>();
@@ -377,32 +394,11 @@ bool refineCircleSegments(const Points2D& p, const Points2D& dir,
 			H(k, k) += prior;
 			g[k] += prior * x[k];
 		}
-		const double c0 = cost(x, s);
-		bool improved = false;
-		for (int tries = 0; tries < 10 && !improved; tries++)
-		{
-			Eigen::MatrixXd Hd = H;
-			Hd.diagonal() *= (1 + lambda);
-			const Eigen::VectorXd step = Hd.ldlt().solve(-g);
-			if (!step.allFinite()) return false;
-			const Eigen::VectorXd xn = x + step;
-			if (!(xn[2] > 0))
-			{
-				lambda *= 10;
-				continue;
-			}
-			if (cost(xn, s) <= c0)
-			{
-				const double dx = step.norm();
-				x = xn;
-				lambda = std::max(lambda / 10, 1e-9);
-				improved = true;
-				if (dx < 1e-9) it = max_iterations;
-			}
-			else
-				lambda *= 10;
-		}
-		if (!improved) break;
+		const LmStep st = dampedStep(H, g, lambda, x,
+		                             [&](const auto& v) { return cost(v, s); });
+		if (st == LmStep::Failed) return false;
+		if (st == LmStep::Stuck) break;
+		if (st == LmStep::Converged) it = max_iterations;
 	}
 	if (!x.allFinite() || !(x[2] > 0)) return false;
 	c = Circle{{x[0], x[1]}, x[2]};

@@ -7,7 +7,9 @@
 #include <forest_slam/imu/attitude_filter.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <deque>
+#include <iterator>
 #include <string>
 
 namespace forest_slam::imu
@@ -90,6 +92,15 @@ class ImuBuffer
 	static constexpr double kMaxStep_s = 0.1;
 	double settle_until_s_ = -1e300;
 	std::deque<Entry> samples_;
+	/** The last sample at or before t, or the first one when all are after
+	 * t; samples_ must not be empty. */
+	std::deque<Entry>::const_iterator atOrBefore(double t) const
+	{
+		auto it = std::upper_bound(samples_.begin(), samples_.end(), t,
+		                           [](double v, const Entry& e)
+		                           { return v < e.s.t_s; });
+		return it == samples_.begin() ? it : std::prev(it);
+	}
 	double kp_;
 	AttitudeFilter filter_;
 };
