@@ -81,6 +81,21 @@ BoxScene boxScene(unsigned seed, bool back_wall)
 			s.edges.emplace_back(c.x(), c.y(), -1.5f + 0.02f * i);
 	return s;
 }
+/** The pose that turns by `angle_rad` about `axis` and moves by t. */
+Eigen::Isometry3d poseOf(double angle_rad, const Eigen::Vector3d& axis,
+                         const Eigen::Vector3d& t)
+{
+	Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+	T.linear() =
+	    Eigen::AngleAxisd(angle_rad, axis.normalized()).toRotationMatrix();
+	T.translation() = t;
+	return T;
+}
+/** Angle of the rotation between a and b [rad]. */
+double rotationErrorRad(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b)
+{
+	return Eigen::AngleAxisd(a.linear().transpose() * b.linear()).angle();
+}
 }  // namespace
 
 TEST(Registration, RecoversKnownTransformOnSyntheticScene)
@@ -89,11 +104,8 @@ TEST(Registration, RecoversKnownTransformOnSyntheticScene)
 	const BoxScene scene = boxScene(1, false);
 	const auto& planar = scene.planar;
 	const auto& edges = scene.edges;
-	Eigen::Isometry3d truth = Eigen::Isometry3d::Identity();
-	truth.linear() =
-	    Eigen::AngleAxisd(0.05, Eigen::Vector3d(0.2, 0.3, 1).normalized())
-	        .toRotationMatrix();
-	truth.translation() = Eigen::Vector3d(0.4, -0.2, 0.05);
+	const Eigen::Isometry3d truth =
+	    poseOf(0.05, {0.2, 0.3, 1}, {0.4, -0.2, 0.05});
 	// Source = target seen from the moved sensor: p_src = truth^-1 * p_tgt.
 	const Eigen::Isometry3f inv = truth.inverse().cast<float>();
 	std::vector<Eigen::Vector3f> se, sp;
@@ -105,9 +117,7 @@ TEST(Registration, RecoversKnownTransformOnSyntheticScene)
 	    tgt, se, sp, Eigen::Isometry3d::Identity(), {});
 	EXPECT_TRUE(r.converged);
 	EXPECT_LT((r.T.translation() - truth.translation()).norm(), 1e-3);
-	EXPECT_LT(
-	    Eigen::AngleAxisd(r.T.linear().transpose() * truth.linear()).angle(),
-	    1e-4);
+	EXPECT_LT(rotationErrorRad(r.T, truth), 1e-4);
 	EXPECT_GT(r.edge_matches, 100u);
 	EXPECT_GT(r.information_eigenvalues[0], 1.0) << "fully constrained scene";
 }
@@ -122,11 +132,8 @@ TEST(Registration, EstimatesTheSweepMotionFromFiringFractions)
 	const BoxScene scene = boxScene(2, true);
 	const auto& planar = scene.planar;
 	const auto& edges = scene.edges;
-	Eigen::Isometry3d truth = Eigen::Isometry3d::Identity();
-	truth.linear() =
-	    Eigen::AngleAxisd(0.03, Eigen::Vector3d(0.3, -0.2, 1).normalized())
-	        .toRotationMatrix();
-	truth.translation() = Eigen::Vector3d(0.1, -0.05, 0.02);
+	const Eigen::Isometry3d truth =
+	    poseOf(0.03, {0.3, -0.2, 1}, {0.1, -0.05, 0.02});
 	const Eigen::Vector3d w =
 	    3 * M_PI / 180 * Eigen::Vector3d(1, 0.5, -0.7).normalized();
 	const Eigen::Vector3d v(0.04, -0.03, 0.01);
@@ -160,9 +167,7 @@ TEST(Registration, EstimatesTheSweepMotionFromFiringFractions)
 	const auto r = odometry::registerFeatures(
 	    tgt, se, sp, Eigen::Isometry3d::Identity(), o, priors);
 	EXPECT_LT((r.T.translation() - truth.translation()).norm(), 0.01);
-	EXPECT_LT(
-	    Eigen::AngleAxisd(r.T.linear().transpose() * truth.linear()).angle(),
-	    0.002);
+	EXPECT_LT(rotationErrorRad(r.T, truth), 0.002);
 	EXPECT_LT((r.sweep_twist.head<3>() - w).norm(), 0.1 * w.norm());
 	// The sweep's translation is the weakest part (its prior, 0.1 m, and a
 	// scene 10 m across): measured 1.7 cm off, against 5.1 cm when not
@@ -172,8 +177,7 @@ TEST(Registration, EstimatesTheSweepMotionFromFiringFractions)
 	const auto plain = odometry::registerFeatures(
 	    tgt, se, sp, Eigen::Isometry3d::Identity(), o, nullptr);
 	EXPECT_TRUE(plain.sweep_twist.isZero());
-	EXPECT_GT(Eigen::AngleAxisd(plain.T.linear().transpose() * truth.linear())
-	                  .angle() +
+	EXPECT_GT(rotationErrorRad(plain.T, truth) +
 	              (plain.T.translation() - truth.translation()).norm(),
 	          0.01);
 }
