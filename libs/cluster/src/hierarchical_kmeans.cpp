@@ -6,6 +6,10 @@
 #include <limits>
 #include <numeric>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 namespace forest_slam::cluster
 {
 void ClusterOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
@@ -59,6 +63,7 @@ struct Points
 struct SplitScratch
 {
 	std::vector<float> d2, tx, ty, tz;
+	std::vector<int32_t> lab;
 	std::vector<uint8_t> assign;
 	std::vector<uint32_t> tidx;
 };
@@ -76,20 +81,55 @@ struct Centres
 	float x[16], y[16], z[16];
 	int k = 0;
 
-	/** Nearest centre of (x, y, z). */
-	uint8_t nearest(float px, float py, float pz) const
+	/** Nearest centre of each of the n points into lab (ties: the lower
+	 * centre). Four points per SSE2 instruction, with the same float
+	 * expressions (so the same labels) as the scalar loop for the rest. */
+	void nearest(const float* X, const float* Y, const float* Z, size_t n,
+	             int32_t* lab) const
 	{
-		float best_d = (px - x[0]) * (px - x[0]) + (py - y[0]) * (py - y[0]) +
-		               (pz - z[0]) * (pz - z[0]);
-		uint8_t best = 0;
-		for (int c = 1; c < k; c++)
+		size_t i = 0;
+#if defined(__SSE2__)
+		for (; i + 4 <= n; i += 4)
 		{
-			const float d = (px - x[c]) * (px - x[c]) +
-			                (py - y[c]) * (py - y[c]) +
-			                (pz - z[c]) * (pz - z[c]);
-			if (d < best_d) best_d = d, best = static_cast<uint8_t>(c);
+			const __m128 px = _mm_loadu_ps(X + i), py = _mm_loadu_ps(Y + i),
+			             pz = _mm_loadu_ps(Z + i);
+			auto dist = [&](int c)
+			{
+				const __m128 dx = _mm_sub_ps(px, _mm_set1_ps(x[c]));
+				const __m128 dy = _mm_sub_ps(py, _mm_set1_ps(y[c]));
+				const __m128 dz = _mm_sub_ps(pz, _mm_set1_ps(z[c]));
+				return _mm_add_ps(
+				    _mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)),
+				    _mm_mul_ps(dz, dz));
+			};
+			__m128 best = dist(0);
+			__m128i best_c = _mm_setzero_si128();
+			for (int c = 1; c < k; c++)
+			{
+				const __m128 d = dist(c);
+				const __m128i closer = _mm_castps_si128(_mm_cmplt_ps(d, best));
+				best = _mm_min_ps(d, best);
+				best_c = _mm_or_si128(_mm_and_si128(closer, _mm_set1_epi32(c)),
+				                      _mm_andnot_si128(closer, best_c));
+			}
+			_mm_storeu_si128(reinterpret_cast<__m128i*>(lab + i), best_c);
 		}
-		return best;
+#endif
+		for (; i < n; i++)
+		{
+			float best_d = (X[i] - x[0]) * (X[i] - x[0]) +
+			               (Y[i] - y[0]) * (Y[i] - y[0]) +
+			               (Z[i] - z[0]) * (Z[i] - z[0]);
+			int32_t best = 0;
+			for (int c = 1; c < k; c++)
+			{
+				const float d = (X[i] - x[c]) * (X[i] - x[c]) +
+				                (Y[i] - y[c]) * (Y[i] - y[c]) +
+				                (Z[i] - z[c]) * (Z[i] - z[c]);
+				if (d < best_d) best_d = d, best = c;
+			}
+			lab[i] = best;
+		}
 	}
 };
 
@@ -98,7 +138,7 @@ struct Centres
  * such as stems and branches), then Lloyd steps until the assignment no
  * longer changes. `assign` receives the last assignment. */
 Centres lloyd(const float* X, const float* Y, const float* Z, size_t n, int k,
-              int iterations, float* d2, uint8_t* assign)
+              int iterations, float* d2, int32_t* lab, uint8_t* assign)
 {
 	Centres C;
 	k = static_cast<int>(std::min<size_t>(k, n));
@@ -127,9 +167,10 @@ Centres lloyd(const float* X, const float* Y, const float* Z, size_t n, int k,
 		bool changed = false;
 		float sx[16] = {0}, sy[16] = {0}, sz[16] = {0};
 		uint32_t cnt[16] = {0};
+		C.nearest(X, Y, Z, n, lab);
 		for (size_t i = 0; i < n; i++)
 		{
-			const uint8_t best = C.nearest(X[i], Y[i], Z[i]);
+			const uint8_t best = static_cast<uint8_t>(lab[i]);
 			changed |= assign[i] != best;
 			assign[i] = best;
 			sx[best] += X[i], sy[best] += Y[i], sz[best] += Z[i];
@@ -166,7 +207,7 @@ void kmeansSplit(Points& P, size_t begin, size_t end, int k, int iterations,
 	uint8_t* assign = S.assign.data();
 	Centres C;
 	if (n <= kSampleSize)
-		C = lloyd(X, Y, Z, n, k, iterations, S.d2.data(), assign);
+		C = lloyd(X, Y, Z, n, k, iterations, S.d2.data(), S.lab.data(), assign);
 	else
 	{
 		float* sx = S.tx.data();
@@ -177,8 +218,11 @@ void kmeansSplit(Points& P, size_t begin, size_t end, int k, int iterations,
 			const size_t i = j * n / kSampleSize;
 			sx[j] = X[i], sy[j] = Y[i], sz[j] = Z[i];
 		}
-		C = lloyd(sx, sy, sz, kSampleSize, k, iterations, S.d2.data(), assign);
-		for (size_t i = 0; i < n; i++) assign[i] = C.nearest(X[i], Y[i], Z[i]);
+		C = lloyd(sx, sy, sz, kSampleSize, k, iterations, S.d2.data(),
+		          S.lab.data(), assign);
+		C.nearest(X, Y, Z, n, S.lab.data());
+		for (size_t i = 0; i < n; i++)
+			assign[i] = static_cast<uint8_t>(S.lab[i]);
 	}
 	k = C.k;
 	// Stable partition by assignment (counting sort), with the boxes.
@@ -248,6 +292,7 @@ ClusterLabels hierarchicalKMeans(const std::vector<Eigen::Vector3f>& pts,
 	for (auto* v : {&scratch.d2, &scratch.tx, &scratch.ty, &scratch.tz})
 		v->resize(std::max(N, kSampleSize));
 	scratch.assign.resize(N);
+	scratch.lab.resize(std::max(N, kSampleSize));
 
 	// Depth-first recursion with an explicit stack of [begin, end) ranges
 	// and their bounding boxes.
