@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Eigenvalues>
+#include <atomic>
 #include <fstream>
 #include <random>
 
@@ -120,6 +121,66 @@ TEST(Registration, RecoversKnownTransformOnSyntheticScene)
 	EXPECT_LT(rotationErrorRad(r.T, truth), 1e-4);
 	EXPECT_GT(r.edge_matches, 100u);
 	EXPECT_GT(r.information_eigenvalues[0], 1.0) << "fully constrained scene";
+}
+
+/** A target that counts the neighbourhood searches it answers. */
+struct CountingTarget : public odometry::RegistrationTarget
+{
+	const odometry::FeatureTarget& target;
+	mutable std::atomic<size_t> searches{0};
+	explicit CountingTarget(const odometry::FeatureTarget& t) : target(t) {}
+	bool matchPlane(const Eigen::Vector3f& x, double gate,
+	                const odometry::RegistrationOptions& o,
+	                odometry::PlaneRow& out) const override
+	{
+		searches++;
+		return target.matchPlane(x, gate, o, out);
+	}
+	bool matchLine(const Eigen::Vector3f& x, double gate,
+	               const odometry::RegistrationOptions& o,
+	               odometry::PlaneRow& a, odometry::PlaneRow& b) const override
+	{
+		searches++;
+		return target.matchLine(x, gate, o, a, b);
+	}
+};
+
+TEST(Registration, RematchKeepsTheMatchesOfFeaturesThatBarelyMoved)
+{
+	const BoxScene scene = boxScene(3, false);
+	const Eigen::Isometry3d truth =
+	    poseOf(0.03, {0.1, -0.2, 1}, {0.25, 0.1, -0.03});
+	const Eigen::Isometry3f inv = truth.inverse().cast<float>();
+	std::vector<Eigen::Vector3f> se, sp;
+	for (const auto& p : scene.edges) se.push_back(inv * p);
+	for (const auto& p : scene.planar) sp.push_back(inv * p);
+	odometry::FeatureTarget tgt;
+	tgt.build(scene.edges, scene.planar);
+	const size_t features = se.size() + sp.size();
+	// Four searches (gates 1, 0.55, 0.3, 0.3 m), never stopping early.
+	odometry::RegistrationOptions o;
+	o.outer_iterations = 4;
+	o.converged_translation_m = 0;
+	o.converged_rotation_rad = 0;
+	for (const double rematch : {0.0, 0.005})
+	{
+		o.rematch_distance_m = rematch;
+		CountingTarget counting(tgt);
+		const auto r = odometry::registerFeatures(
+		    counting, se, sp, Eigen::Isometry3d::Identity(), o);
+		EXPECT_LT((r.T.translation() - truth.translation()).norm(), 1e-3)
+		    << rematch;
+		EXPECT_LT(rotationErrorRad(r.T, truth), 1e-4) << rematch;
+		if (rematch == 0)
+			EXPECT_EQ(counting.searches, 4 * features);
+		else
+		{
+			// The fourth search has the gate of the third and the pose
+			// moved by far less than 5 mm: (nearly) every match is kept.
+			EXPECT_GE(counting.searches, 3 * features);
+			EXPECT_LT(counting.searches, 3 * features + features / 20);
+		}
+	}
 }
 
 TEST(Registration, EstimatesTheSweepMotionFromFiringFractions)

@@ -26,6 +26,7 @@ void RegistrationOptions::loadFromConfigFile(
 	FS_LOAD(c, s, prior_translation_sigma_m);
 	FS_LOAD(c, s, prior_rotation_sigma_deg);
 	FS_LOAD(c, s, gravity_sigma_deg);
+	FS_LOAD(c, s, rematch_distance_m);
 	FS_LOAD(c, s, converged_translation_m);
 	FS_LOAD(c, s, converged_rotation_rad);
 	const std::string where = core::configOrigin(c) + ": [" + s + "] ";
@@ -40,6 +41,10 @@ void RegistrationOptions::loadFromConfigFile(
 		throw core::ConfigError(where +
 		                        "need 0 < min_correspondence_m <= "
 		                        "max_correspondence_m and huber_m > 0");
+	if (!(rematch_distance_m >= 0) ||
+	    !(rematch_distance_m < min_correspondence_m))
+		throw core::ConfigError(
+		    where + "rematch_distance_m must be in [0, min_correspondence_m)");
 }
 
 void RegistrationOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
@@ -59,6 +64,7 @@ void RegistrationOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
 	c.write(s, "prior_translation_sigma_m", prior_translation_sigma_m);
 	c.write(s, "prior_rotation_sigma_deg", prior_rotation_sigma_deg);
 	c.write(s, "gravity_sigma_deg", gravity_sigma_deg);
+	c.write(s, "rematch_distance_m", rematch_distance_m);
 	c.write(s, "converged_translation_m", converged_translation_m);
 	c.write(s, "converged_rotation_rad", converged_rotation_rad);
 }
@@ -317,8 +323,13 @@ RegistrationResult registerFeatures(
 	Eigen::Vector3d t = initial.translation();
 	std::vector<Row> rows;
 	rows.reserve(src_planar.size() + 2 * src_edges.size());
-	std::vector<uint8_t> plane_ok, edge_ok;
-	std::vector<PlaneRow> plane_rows, edge_rows;
+	// Per feature: its match, and where it was searched (map frame).
+	std::vector<uint8_t> plane_ok(src_planar.size()), edge_ok(src_edges.size());
+	std::vector<PlaneRow> plane_rows(src_planar.size()),
+	    edge_rows(2 * src_edges.size());
+	std::vector<Eigen::Vector3f> plane_at(src_planar.size()),
+	    edge_at(src_edges.size());
+	double searched_gate = -1;  // gate of the previous search
 	double lambda = 1e-4;
 	const bool sweep = priors.edge_fraction && priors.planar_fraction &&
 	                   priors.edge_fraction->size() == src_edges.size() &&
@@ -340,24 +351,32 @@ RegistrationResult registerFeatures(
 		// thread count.
 		const int np_src = static_cast<int>(src_planar.size());
 		const int ne_src = static_cast<int>(src_edges.size());
-		plane_ok.assign(src_planar.size(), 0);
-		edge_ok.assign(src_edges.size(), 0);
-		plane_rows.resize(src_planar.size());
-		edge_rows.resize(2 * src_edges.size());
-		parallelChunks(np_src + ne_src, o.threads,
-		               [&](int i)
-		               {
-			               if (i < np_src)
-				               plane_ok[i] = target.matchPlane(
-				                   T * src_planar[i], gate, o, plane_rows[i]);
-			               else
-			               {
-				               const int e = i - np_src;
-				               edge_ok[e] = target.matchLine(
-				                   T * src_edges[e], gate, o, edge_rows[2 * e],
-				                   edge_rows[2 * e + 1]);
-			               }
-		               });
+		const float keep2 = gate == searched_gate
+		                        ? static_cast<float>(o.rematch_distance_m *
+		                                             o.rematch_distance_m)
+		                        : -1.f;
+		searched_gate = gate;
+		parallelChunks(
+		    np_src + ne_src, o.threads,
+		    [&](int i)
+		    {
+			    if (i < np_src)
+			    {
+				    const Eigen::Vector3f x = T * src_planar[i];
+				    if ((x - plane_at[i]).squaredNorm() < keep2) return;
+				    plane_at[i] = x;
+				    plane_ok[i] = target.matchPlane(x, gate, o, plane_rows[i]);
+			    }
+			    else
+			    {
+				    const int e = i - np_src;
+				    const Eigen::Vector3f x = T * src_edges[e];
+				    if ((x - edge_at[e]).squaredNorm() < keep2) return;
+				    edge_at[e] = x;
+				    edge_ok[e] = target.matchLine(x, gate, o, edge_rows[2 * e],
+				                                  edge_rows[2 * e + 1]);
+			    }
+		    });
 		rows.clear();
 		size_t ne = 0, np = 0;
 		for (int i = 0; i < np_src; i++)

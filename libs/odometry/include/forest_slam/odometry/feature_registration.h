@@ -47,6 +47,12 @@ struct RegistrationOptions : public mrpt::config::CLoadableOptions
 	 * the accelerometer sees gravity, so roll/pitch cannot drift [deg]. 0
 	 * disables. */
 	double gravity_sigma_deg = 3.0;
+	/** A correspondence search at the same gate as the previous one keeps
+	 * a feature's match (plane or line) when the feature moved less than
+	 * this since it was searched: once the gate stops shrinking, the pose
+	 * changes by millimetres and re-searching every neighbourhood costs a
+	 * third of the k-NN time for the same matches. 0 re-searches all. */
+	double rematch_distance_m = 0;
 	/** Converged when the update is below these. */
 	double converged_translation_m = 1e-4;
 	double converged_rotation_rad = 1e-5;
