@@ -75,6 +75,28 @@ TEST(HierarchicalKMeans, DeterministicAndOrderOfCentroidsStable)
 	EXPECT_EQ(a.sizes, b.sizes);
 }
 
+TEST(HierarchicalKMeans, SameClustersOnAnyThreadCount)
+{
+	// 9000 points: above the size from which the root's groups are split
+	// on several threads.
+	const auto s = makeStems(3, 15, 600);
+	cluster::ClusterOptions one;
+	one.threads = 1;
+	const auto a = cluster::hierarchicalKMeans(s.pts, one);
+	for (int threads : {2, 3, 8})
+	{
+		cluster::ClusterOptions o;
+		o.threads = threads;
+		const auto b = cluster::hierarchicalKMeans(s.pts, o);
+		EXPECT_EQ(a.cluster, b.cluster) << threads << " threads";
+		EXPECT_EQ(a.sizes, b.sizes) << threads << " threads";
+		ASSERT_EQ(a.centroids.size(), b.centroids.size());
+		for (size_t c = 0; c < a.centroids.size(); c++)
+			EXPECT_EQ(a.centroids[c], b.centroids[c]) << c;
+	}
+	EXPECT_GT(a.clusterCount(), 9000u / one.max_cluster_points);
+}
+
 TEST(HierarchicalKMeans, SmallClustersMergeIntoNearNeighboursOnly)
 {
 	// 300 points of a blob + 3 points 0.3 m away (merge) + 3 points 20 m

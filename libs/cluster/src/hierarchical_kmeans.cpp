@@ -2,9 +2,11 @@
 #include <forest_slam/core/config.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <limits>
 #include <numeric>
+#include <thread>
 
 #if defined(__SSE2__)
 #include <emmintrin.h>
@@ -21,6 +23,7 @@ void ClusterOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 	FS_LOAD(c, s, kmeans_iterations);
 	FS_LOAD(c, s, max_merge_distance_m);
 	FS_LOAD(c, s, max_cluster_extent_m);
+	FS_LOAD(c, s, threads);
 	const std::string where = core::configOrigin(c) + ": [" + s + "] ";
 	if (branching_factor < 2 || branching_factor > 16)
 		throw core::ConfigError(where + "branching_factor must be in [2, 16]");
@@ -35,6 +38,8 @@ void ClusterOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 		throw core::ConfigError(where + "max_cluster_extent_m must be >= 0");
 	if (!(max_merge_distance_m >= 0))
 		throw core::ConfigError(where + "max_merge_distance_m must be >= 0");
+	if (threads < 1 || threads > 64)
+		throw core::ConfigError(where + "threads must be in [1, 64]");
 }
 
 void ClusterOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
@@ -46,6 +51,7 @@ void ClusterOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
 	c.write(s, "kmeans_iterations", kmeans_iterations);
 	c.write(s, "max_merge_distance_m", max_merge_distance_m);
 	c.write(s, "max_cluster_extent_m", max_cluster_extent_m);
+	c.write(s, "threads", threads);
 }
 
 namespace
@@ -66,6 +72,9 @@ struct SplitScratch
 	std::vector<int32_t> lab;
 	std::vector<uint8_t> assign;
 	std::vector<uint32_t> tidx;
+
+	/** Room for a split of up to n points. */
+	void resize(size_t n);
 };
 
 /** Bounding box of a group. */
@@ -260,6 +269,68 @@ void kmeansSplit(Points& P, size_t begin, size_t end, int k, int iterations,
 			boxes.push_back(box[c]);
 		}
 }
+
+void SplitScratch::resize(size_t n)
+{
+	for (auto* v : {&d2, &tx, &ty, &tz}) v->resize(std::max(n, kSampleSize));
+	lab.resize(std::max(n, kSampleSize));
+	assign.resize(n);
+}
+
+/** Ranges of points being split, with their bounding boxes. */
+struct Range
+{
+	size_t b, e;
+	Box box;
+};
+using Leaves = std::vector<std::pair<size_t, size_t>>;
+
+/** Small enough (points and extent) to be a cluster. */
+bool isLeaf(const Range& r, const ClusterOptions& opts)
+{
+	const float max_extent2 = static_cast<float>(opts.max_cluster_extent_m *
+	                                             opts.max_cluster_extent_m);
+	return r.e - r.b <= static_cast<size_t>(opts.max_cluster_points) &&
+	       (opts.max_cluster_extent_m <= 0 || r.e - r.b < 2 ||
+	        r.box.diagonal2() <= max_extent2);
+}
+
+/** Splits `root` down to clusters, depth-first with an explicit stack;
+ * appends the leaves in the order the stack visits them. */
+void splitDown(Points& P, const Range& root, const ClusterOptions& opts,
+               SplitScratch& S, Leaves& leaves)
+{
+	std::vector<Range> stack = {root};
+	std::vector<size_t> bounds;
+	std::vector<Box> boxes;
+	while (!stack.empty())
+	{
+		const Range r = stack.back();
+		stack.pop_back();
+		if (isLeaf(r, opts))
+		{
+			leaves.push_back({r.b, r.e});
+			continue;
+		}
+		kmeansSplit(P, r.b, r.e, opts.branching_factor, opts.kmeans_iterations,
+		            bounds, boxes, S);
+		if (bounds.size() <= 1)
+		{
+			leaves.push_back({r.b, r.e});  // cannot split (identical points)
+			continue;
+		}
+		size_t s = r.b;
+		for (size_t g = 0; g < bounds.size(); g++)
+		{
+			stack.push_back({s, bounds[g], boxes[g]});
+			s = bounds[g];
+		}
+	}
+}
+
+/** Fewer points than this are split on the caller's thread only: a thread
+ * costs tens of microseconds, the split of a small scan about as much. */
+constexpr size_t kParallelPoints = 4096;
 }  // namespace
 
 ClusterLabels hierarchicalKMeans(const std::vector<Eigen::Vector3f>& pts,
@@ -289,49 +360,46 @@ ClusterLabels hierarchicalKMeans(const std::vector<Eigen::Vector3f>& pts,
 		all.hi = all.hi.cwiseMax(q);
 	}
 	SplitScratch scratch;
-	for (auto* v : {&scratch.d2, &scratch.tx, &scratch.ty, &scratch.tz})
-		v->resize(std::max(N, kSampleSize));
-	scratch.assign.resize(N);
-	scratch.lab.resize(std::max(N, kSampleSize));
+	scratch.resize(N);
 
-	// Depth-first recursion with an explicit stack of [begin, end) ranges
-	// and their bounding boxes.
-	struct Range
-	{
-		size_t b, e;
-		Box box;
-	};
-	std::vector<Range> stack = {{0, idx.size(), all}};
-	std::vector<std::pair<size_t, size_t>> leaves;
+	// The root's split, then its groups split down on `threads` threads
+	// (each range is partitioned in place, the groups are disjoint); the
+	// leaves are concatenated in the order one depth-first stack visits
+	// them, so the clusters do not depend on the thread count.
+	const Range root{0, N, all};
+	Leaves leaves;
 	std::vector<size_t> bounds;
 	std::vector<Box> boxes;
-	const float max_extent2 = static_cast<float>(opts.max_cluster_extent_m *
-	                                             opts.max_cluster_extent_m);
-	while (!stack.empty())
+	if (opts.threads < 2 || N < kParallelPoints || isLeaf(root, opts))
+		splitDown(P, root, opts, scratch, leaves);
+	else
 	{
-		const Range r = stack.back();
-		stack.pop_back();
-		const size_t b = r.b, e = r.e;
-		if (e - b <= static_cast<size_t>(opts.max_cluster_points) &&
-		    (opts.max_cluster_extent_m <= 0 || e - b < 2 ||
-		     r.box.diagonal2() <= max_extent2))
-		{
-			leaves.push_back({b, e});
-			continue;
-		}
-		kmeansSplit(P, b, e, opts.branching_factor, opts.kmeans_iterations,
+		kmeansSplit(P, 0, N, opts.branching_factor, opts.kmeans_iterations,
 		            bounds, boxes, scratch);
-		if (bounds.size() <= 1)
+		if (bounds.size() <= 1) bounds = {N}, boxes = {all};  // one leaf
+		std::vector<Range> groups;
+		for (size_t g = 0, s = 0; g < bounds.size(); s = bounds[g++])
+			groups.push_back({s, bounds[g], boxes[g]});
+		std::vector<Leaves> part(groups.size());
+		std::atomic<size_t> next{0};
+		auto work = [&](SplitScratch& S)
 		{
-			leaves.push_back({b, e});  // cannot split (identical points)
-			continue;
-		}
-		size_t s = b;
-		for (size_t g = 0; g < bounds.size(); g++)
+			for (size_t g; (g = next.fetch_add(1)) < groups.size();)
+				splitDown(P, groups[g], opts, S, part[g]);
+		};
+		const int extra = std::min<int>(opts.threads, groups.size()) - 1;
+		std::vector<SplitScratch> extra_scratch(std::max(0, extra));
+		std::vector<std::thread> pool;
+		for (int t = 0; t < extra; t++)
 		{
-			stack.push_back({s, bounds[g], boxes[g]});
-			s = bounds[g];
+			extra_scratch[t].resize(N);
+			pool.emplace_back(work, std::ref(extra_scratch[t]));
 		}
+		work(scratch);
+		for (auto& th : pool) th.join();
+		// A stack pops the last group first.
+		for (size_t g = groups.size(); g-- > 0;)
+			leaves.insert(leaves.end(), part[g].begin(), part[g].end());
 	}
 
 	// Leaves -> clusters; then merge the small ones into the nearest big one.

@@ -30,6 +30,9 @@ struct ClusterOptions : public mrpt::config::CLoadableOptions
 	 * whatever its size: sigma alone lets a few far returns of two stems
 	 * end up in one small cluster (0 = size only) [m]. */
 	double max_cluster_extent_m = 2.0;
+	/** Threads splitting the root's groups (the caller's and threads-1
+	 * short-lived ones); the clusters do not depend on it. */
+	int threads = 2;
 
 	void loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 	                        const std::string& section) override;
