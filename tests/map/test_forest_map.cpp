@@ -179,3 +179,71 @@ TEST(ForestMap, InsertsRealScanAndLikelihoodPeaksAtTruePose)
 	EXPECT_GT(std::filesystem::file_size(prefix + "_planar.xyz"), 1000u);
 	EXPECT_TRUE(std::filesystem::exists(prefix + "_trees.csv"));
 }
+
+TEST(ForestMap, SegmentsFollowTheirOwnCorrection)
+{
+	// A stem mapped twice: first by a drifted pass 0.6 m east of where it
+	// stands, then (after the back-end's correction) where it stands. Kept
+	// apart as two segments, each moves with its own correction: the
+	// drifted one back by 0.6 m, the other not at all; once merged the
+	// stem is one column of voxels holding both passes' points.
+	map::ForestMapOptions o;
+	o.edge_voxel_m = 0.1;
+	o.planar_voxel_m = 0.5;
+	CForestMap m(o);
+	auto stem = [](float x)
+	{
+		std::vector<Eigen::Vector3f> e;
+		for (int k = 0; k < 200; k++)
+			e.emplace_back(x + 0.03f, 5.05f, 0.005f + k * 0.01f);
+		return e;
+	};
+	m.insertFeatures(stem(10.6f), {Eigen::Vector3f(10.6f, 5, -1)});
+	EXPECT_EQ(m.segmentCount(), 1u);
+	m.startSegment();
+	EXPECT_EQ(m.segmentCount(), 2u);
+	m.insertFeatures(stem(10.0f), {Eigen::Vector3f(10.0f, 5, -1)});
+	// Both segments counted while apart; a voxel of the same place in
+	// another segment is another voxel.
+	EXPECT_EQ(m.edgePointCount(), 40u);
+	EXPECT_EQ(m.planarPointCount(), 2u);
+	EXPECT_EQ(m.submaps().size(), 2u);  // the current segment's (z < 0, z > 0)
+	EXPECT_GT(m.memoryBytes(), 0u);
+	// Serializing a map with segments apart is a programming error
+	// (MRPT rethrows it wrapped).
+	{
+		mrpt::io::CMemoryStream buf;
+		auto arch = mrpt::serialization::archiveFrom(buf);
+		EXPECT_ANY_THROW(arch << m);
+	}
+	std::vector<size_t> asked(2, 0);
+	m.transformSegments(
+	    [&](size_t s, const Eigen::Vector3f& c)
+	    {
+		    EXPECT_LT(s, 2u);
+		    asked.at(s)++;
+		    Eigen::Isometry3f T = Eigen::Isometry3f::Identity();
+		    if (s == 0) T.translation() = Eigen::Vector3f(-0.6f, 0, 0);
+		    EXPECT_TRUE(c.allFinite());
+		    return T;
+	    });
+	EXPECT_EQ(asked[0], 21u);
+	EXPECT_EQ(asked[1], 21u);
+	EXPECT_EQ(m.segmentCount(), 1u);
+	EXPECT_EQ(m.edgePointCount(), 20u);
+	EXPECT_EQ(m.planarPointCount(), 1u);
+	size_t n = 0;
+	for (const auto& kv : m.submaps())
+		kv.second.edge.forEachVoxel(
+		    [&](const map::VoxelKey&, const map::VoxelCloud::Accum& a)
+		    {
+			    EXPECT_EQ(a.count, 20u);  // 10 points of each pass
+			    EXPECT_NEAR(a.centroid().x(), 10.03f, 1e-4);
+			    n++;
+		    });
+	EXPECT_EQ(n, 20u);
+	// The merged map serializes again.
+	mrpt::io::CMemoryStream buf;
+	auto arch = mrpt::serialization::archiveFrom(buf);
+	EXPECT_NO_THROW(arch << m);
+}

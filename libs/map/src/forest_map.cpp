@@ -197,18 +197,57 @@ SubmapKey CForestMap::submapKeyOf(const Eigen::Vector3f& p) const
 	return voxelKeyOf(p, static_cast<float>(1.0 / opts_.submap_size_m));
 }
 
-Submap& CForestMap::submapFor(const Eigen::Vector3f& p)
+Submap& CForestMap::submapIn(SubmapTable& table, const Eigen::Vector3f& p) const
 {
 	const auto key = submapKeyOf(p);
-	auto it = submaps_.find(key);
-	if (it == submaps_.end())
+	auto it = table.find(key);
+	if (it == table.end())
 	{
 		Submap s;
 		s.edge.setVoxelSize(static_cast<float>(opts_.edge_voxel_m));
 		s.planar.setVoxelSize(static_cast<float>(opts_.planar_voxel_m));
-		it = submaps_.emplace(key, std::move(s)).first;
+		it = table.emplace(key, std::move(s)).first;
 	}
 	return it->second;
+}
+
+void CForestMap::startSegment()
+{
+	if (submaps_.empty()) return;  // nothing to keep apart yet
+	frozen_.push_back(std::move(submaps_));
+	submaps_ = SubmapTable();
+	markDirty();
+}
+
+void CForestMap::transformSegments(
+    const std::function<Eigen::Isometry3f(size_t, const Eigen::Vector3f&)>& T)
+{
+	SubmapTable out;
+	const auto move = [&](SubmapTable& table, size_t segment)
+	{
+		// Each submap is released once moved.
+		for (auto it = table.begin(); it != table.end(); it = table.erase(it))
+			for (const bool edges : {true, false})
+				(edges ? it->second.edge : it->second.planar)
+				    .forEachVoxel(
+				        [&](const VoxelKey&, const VoxelCloud::Accum& a)
+				        {
+					        const Eigen::Vector3f q =
+					            T(segment, a.centroid()) * a.centroid();
+					        if (!q.allFinite()) return;
+					        VoxelCloud::Accum b;
+					        b.sum = q * static_cast<float>(a.count);
+					        b.count = a.count;
+					        Submap& sm = submapIn(out, q);
+					        VoxelCloud& c = edges ? sm.edge : sm.planar;
+					        c.add(c.keyOf(q), b);
+				        });
+	};
+	for (size_t s = 0; s < frozen_.size(); s++) move(frozen_[s], s);
+	move(submaps_, frozen_.size());
+	frozen_.clear();
+	submaps_ = std::move(out);
+	markDirty();
 }
 
 void CForestMap::insertPoints(const std::vector<Eigen::Vector3f>& pts,
@@ -309,21 +348,31 @@ void CForestMap::collectNear(const Eigen::Vector3d& centre, double radius_m,
 
 size_t CForestMap::memoryBytes() const
 {
-	size_t n = core::hashMapBytes(submaps_);
-	for (const auto& kv : submaps_)
-		n += kv.second.edge.memoryBytes() + kv.second.planar.memoryBytes();
+	size_t n = core::vectorBytes(frozen_);
+	const auto table = [&](const SubmapTable& t)
+	{
+		n += core::hashMapBytes(t);
+		for (const auto& kv : t)
+			n += kv.second.edge.memoryBytes() + kv.second.planar.memoryBytes();
+	};
+	for (const auto& t : frozen_) table(t);
+	table(submaps_);
 	return n;
 }
 
 size_t CForestMap::edgePointCount() const
 {
 	size_t n = 0;
+	for (const auto& t : frozen_)
+		for (const auto& kv : t) n += kv.second.edge.size();
 	for (const auto& kv : submaps_) n += kv.second.edge.size();
 	return n;
 }
 size_t CForestMap::planarPointCount() const
 {
 	size_t n = 0;
+	for (const auto& t : frozen_)
+		for (const auto& kv : t) n += kv.second.planar.size();
 	for (const auto& kv : submaps_) n += kv.second.planar.size();
 	return n;
 }
@@ -338,12 +387,13 @@ mrpt::math::TBoundingBoxf CForestMap::boundingBox() const
 
 bool CForestMap::isEmpty() const
 {
-	return submaps_.empty() && trees_.empty();
+	return submaps_.empty() && frozen_.empty() && trees_.empty();
 }
 
 void CForestMap::internal_clear()
 {
 	submaps_.clear();
+	frozen_.clear();
 	trees_.clear();
 	markDirty();
 }
@@ -574,6 +624,10 @@ void readCloud(mrpt::serialization::CArchive& in, VoxelCloud& c)
 
 void CForestMap::serializeTo(mrpt::serialization::CArchive& out) const
 {
+	if (!frozen_.empty())
+		throw std::logic_error(
+		    "CForestMap: serialized with segments apart (call "
+		    "transformSegments first)");
 	out << opts_.submap_size_m << opts_.edge_voxel_m << opts_.planar_voxel_m
 		<< opts_.edge_smoothness_threshold
 		<< static_cast<int32_t>(opts_.smoothness_half_window)

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdint>
 #include <stdexcept>
+#include <tuple>
 
 namespace forest_slam::outputs
 {
@@ -165,6 +166,34 @@ DensePoint* DenseMap::claimIn(Tile& t, uint64_t key, const Eigen::Vector3f& xyz)
 	return &t.points.back();
 }
 
+void DenseMap::keepEarlier(const DensePoint& p)
+{
+	uint64_t key;
+	if (!p.xyz.allFinite() || !voxelKey(p.xyz, inv_voxel_, key)) return;
+	Tile& t = tileFor(key);
+	if (t.spilled) reload(t);
+	size_t slot = slotOf(key, t.mask);
+	while (t.keys[slot] != kEmpty)
+	{
+		if (t.keys[slot] == key)
+		{
+			// The earlier measurement stays (ties: the lower point), so
+			// the result does not depend on the order of the tiles.
+			DensePoint& q = t.points[t.index[slot]];
+			const auto rank = [](const DensePoint& a)
+			{ return std::make_tuple(a.t_s, a.xyz.z(), a.xyz.y(), a.xyz.x()); };
+			if (rank(p) < rank(q))
+			{
+				q = p;
+				t.changed = true;
+			}
+			return;
+		}
+		slot = (slot + 1) & t.mask;
+	}
+	*claimIn(t, key, p.xyz) = p;
+}
+
 void DenseMap::prefetch(const Eigen::Vector3f& xyz) const
 {
 	uint64_t key;
@@ -241,6 +270,41 @@ size_t DenseMap::spillFar(const Eigen::Vector2d& centre, double radius_m,
 		moved++;
 	}
 	return moved;
+}
+
+void DenseMap::transformPoints(const std::function<void(DensePoint&)>& move,
+                               double spill_radius_m)
+{
+	DenseMap out(voxel_m_);
+	out.tile_vox_ = tile_vox_;
+	out.t0_ = t0_;
+	const double edge = tile_vox_ * voxel_m_;
+	std::vector<DensePoint> buf;
+	for (auto& tp : tiles_)
+	{
+		Tile& t = *tp;
+		if (t.spilled)
+			spill_->readVector(t.spill_offset, t.spill_count, buf);
+		else
+		{
+			buf.swap(t.points);
+			std::vector<DensePoint>().swap(t.points);
+		}
+		std::vector<uint64_t>().swap(t.keys);
+		std::vector<uint32_t>().swap(t.index);
+		for (auto& p : buf)
+		{
+			move(p);
+			out.keepEarlier(p);
+		}
+		if (spill_ && tile_vox_ > 0)
+			out.spillFar(
+			    Eigen::Vector2d((t.tx + 0.5) * edge, (t.ty + 0.5) * edge),
+			    spill_radius_m, spill_);
+		tp.reset();
+	}
+	if (!out.spill_) out.spill_ = spill_;
+	*this = std::move(out);
 }
 
 void DenseMap::reload(Tile& t)

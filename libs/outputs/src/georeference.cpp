@@ -3,6 +3,7 @@
 #include <GeographicLib/LocalCartesian.hpp>
 #include <GeographicLib/UTMUPS.hpp>
 
+#include <cmath>
 #include <stdexcept>
 
 namespace forest_slam::outputs
@@ -38,11 +39,25 @@ std::optional<Georeference> Georeference::fromOptions(const GeoOptions& o)
 	return g;
 }
 
-Eigen::Vector3d Georeference::toProjected(const Eigen::Vector3d& p) const
+Eigen::Vector3d Georeference::toEnu(const Eigen::Vector3d& p) const
+{
+	if (o_.map_to_enu_yaw_rad == 0 && o_.map_to_enu_x_m == 0 &&
+	    o_.map_to_enu_y_m == 0 && o_.map_to_enu_z_m == 0)
+		return p;
+	const double c = std::cos(o_.map_to_enu_yaw_rad),
+	             s = std::sin(o_.map_to_enu_yaw_rad);
+	return {c * p.x() - s * p.y() + o_.map_to_enu_x_m,
+	        s * p.x() + c * p.y() + o_.map_to_enu_y_m,
+	        p.z() + o_.map_to_enu_z_m};
+}
+
+Eigen::Vector3d Georeference::toProjected(const Eigen::Vector3d& map_xyz) const
 {
 	if (!enu_)
-		return {p.x() + o_.utm_offset_e_m, p.y() + o_.utm_offset_n_m,
-		        p.z() + o_.utm_offset_h_m};
+		return {map_xyz.x() + o_.utm_offset_e_m,
+		        map_xyz.y() + o_.utm_offset_n_m,
+		        map_xyz.z() + o_.utm_offset_h_m};
+	const Eigen::Vector3d p = toEnu(map_xyz);
 	double lat, lon, h, e, n, gamma, k;
 	int zone;
 	bool northp;
@@ -60,7 +75,8 @@ LatLonAlt Georeference::toLatLon(const Eigen::Vector3d& p) const
 	LatLonAlt r;
 	if (enu_)
 	{
-		enu_->Reverse(p.x(), p.y(), p.z(), r.lat_deg, r.lon_deg, r.alt_m);
+		const Eigen::Vector3d q = toEnu(p);
+		enu_->Reverse(q.x(), q.y(), q.z(), r.lat_deg, r.lon_deg, r.alt_m);
 		return r;
 	}
 	const Eigen::Vector3d q = toProjected(p);

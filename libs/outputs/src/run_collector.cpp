@@ -204,6 +204,12 @@ void RunCollector::collect(
 	collect_s_ += threadCpuSeconds() - cpu0;
 }
 
+void RunCollector::transformDense(const std::function<void(DensePoint&)>& move)
+{
+	worker_.flush();
+	dense_.transformPoints(move, o_.dense_max_range_m + o_.dense_tile_m);
+}
+
 size_t RunCollector::keyframeBytes() const
 {
 	worker_.flush();

@@ -13,7 +13,9 @@
 #include <mrpt/system/datetime.h>
 #include <GeographicLib/LocalCartesian.hpp>
 
+#include <algorithm>
 #include <cmath>
+#include <unordered_map>
 
 namespace forest_slam::pipeline
 {
@@ -122,6 +124,20 @@ void MappingPipeline::backEndScan(const PendingScan& s, core::StampedPose& pose)
 			const size_t k = X.size() - 1;
 			const Eigen::Isometry3d C = X[k] * kf_pose_[k].inverse();
 			odometry_->applyCorrection(C);
+			// The scans mapped so far (this one included: the odometry
+			// queued it before the correction) stay in the old segment of
+			// the CForestMap, unless the correction is below its voxels.
+			const double moves_m =
+			    C.translation().norm() + Eigen::AngleAxisd(C.linear()).angle() *
+			                                 cfg_.forest_map.max_insert_range_m;
+			if (moves_m > 0.5 * cfg_.forest_map.edge_voxel_m)
+			{
+				odometry_->flushMap();
+				const size_t n = map_.segmentCount();
+				map_.startSegment();
+				if (map_.segmentCount() > n)
+					map_segment_first_scan_.push_back(trajectory_.size() + 1);
+			}
 			for (auto& T : kf_pose_) T = C * T;
 			pose.pose = C * pose.pose;
 			if (last_scan_pose_)
@@ -233,6 +249,13 @@ void MappingPipeline::finishBackEnd()
 		if (core::interpolatePose(trajectory_, kfs[i].t_s, T, 1e-6))
 			outputs_.setKeyframePose(i, T);
 	}
+	// Dense map and CForestMap: unchanged (bit for bit) when nothing was
+	// optimised.
+	if (backend_->stats().optimisations > 0 && !mapped.empty())
+	{
+		correctDenseMap(mapped);
+		correctForestMap(mapped);
+	}
 	// Tree layer: each column moves with the correction of the scan that
 	// passed nearest to its centre (as mapped).
 	if (tree_layer_ && !mapped.empty())
@@ -258,6 +281,119 @@ void MappingPipeline::finishBackEnd()
 	                         << " closures, " << st.optimisations
 	                         << " optimisations, GNSS " << st.gnss_fixes
 	                         << " fixes (" << st.gnss_outliers << " outliers)");
+}
+
+namespace
+{
+/** Correction of every scan: corrected pose * mapped pose^-1. */
+std::vector<Eigen::Isometry3f, Eigen::aligned_allocator<Eigen::Isometry3f>>
+scanCorrections(const core::Trajectory& corrected,
+                const core::Trajectory& mapped)
+{
+	std::vector<Eigen::Isometry3f, Eigen::aligned_allocator<Eigen::Isometry3f>>
+	    C(mapped.size());
+	for (size_t i = 0; i < mapped.size(); i++)
+		C[i] = (corrected[i].pose * mapped[i].pose.inverse()).cast<float>();
+	return C;
+}
+}  // namespace
+
+void MappingPipeline::correctDenseMap(const core::Trajectory& mapped)
+{
+	// Each point moves with the correction of its scan, found from the
+	// point's time (the last scan starting at or before it): exact, and
+	// nothing was spent on it while mapping.
+	const auto C = scanCorrections(trajectory_, mapped);
+	std::vector<double> t(mapped.size());
+	for (size_t i = 0; i < mapped.size(); i++) t[i] = mapped[i].t_s;
+	const double t0 = outputs_.dense().timeOrigin();
+	size_t k = 0;
+	outputs_.transformDense(
+	    [&](outputs::DensePoint& p)
+	    {
+		    const double tp = t0 + p.t_s;
+		    if (!(t[k] <= tp && (k + 1 == t.size() || tp < t[k + 1])))
+		    {
+			    const size_t u =
+			        std::upper_bound(t.begin(), t.end(), tp) - t.begin();
+			    k = u > 0 ? u - 1 : 0;
+		    }
+		    p.xyz = C[k] * p.xyz;
+	    });
+}
+
+void MappingPipeline::correctForestMap(const core::Trajectory& mapped)
+{
+	// A voxel averages many scans: it moves with the correction of the
+	// scan of its segment that passed nearest to it (horizontally, as
+	// mapped), like the tree columns. Segments keep the voxels mapped
+	// before and after each correction apart, so a revisited place does
+	// not mix a drifted first pass with the corrected second one.
+	const auto C = scanCorrections(trajectory_, mapped);
+	if (map_.segmentCount() != map_segment_first_scan_.size() + 1)
+		throw std::logic_error("back-end: CForestMap segment bookkeeping");
+	// Candidates per segment: its scans 0.5 m apart, without the scan
+	// mapped before the correction that ended it (its pose was corrected).
+	std::vector<std::vector<size_t>> cand(map_.segmentCount());
+	for (size_t s = 0; s < cand.size(); s++)
+	{
+		const size_t a = s == 0 ? 0 : map_segment_first_scan_[s - 1];
+		const size_t b = s + 1 < cand.size() ? map_segment_first_scan_[s] - 1
+		                                     : mapped.size();
+		for (size_t i = a; i < std::min(b, mapped.size()); i++)
+			if (cand[s].empty() || (mapped[i].pose.translation() -
+			                        mapped[cand[s].back()].pose.translation())
+			                               .head<2>()
+			                               .norm() >= 0.5)
+				cand[s].push_back(i);
+		if (cand[s].empty()) cand[s].push_back(std::min(a, mapped.size() - 1));
+	}
+	// Nearest candidate per 1 m cell, computed once.
+	constexpr double kCell = 1.0;
+	std::unordered_map<uint64_t, size_t> nearest;
+	map_.transformSegments(
+	    [&](size_t s, const Eigen::Vector3f& c) -> Eigen::Isometry3f
+	    {
+		    const int64_t i = static_cast<int64_t>(std::floor(c.x() / kCell));
+		    const int64_t j = static_cast<int64_t>(std::floor(c.y() / kCell));
+		    const uint64_t key = (uint64_t(s) << 48) |
+		                         ((uint64_t(i) & 0xffffff) << 24) |
+		                         (uint64_t(j) & 0xffffff);
+		    auto it = nearest.find(key);
+		    if (it == nearest.end())
+		    {
+			    const Eigen::Vector2d q((i + 0.5) * kCell, (j + 0.5) * kCell);
+			    size_t best = cand[s].front();
+			    double bd = 1e300;
+			    for (const size_t n : cand[s])
+			    {
+				    const double d =
+				        (mapped[n].pose.translation().head<2>() - q)
+				            .squaredNorm();
+				    if (d < bd) bd = d, best = n;
+			    }
+			    it = nearest.emplace(key, best).first;
+		    }
+		    return C[it->second];
+	    });
+}
+
+std::optional<outputs::GeoOptions> MappingPipeline::estimatedGeoreference()
+    const
+{
+	if (!backend_ || !gnss_origin_) return std::nullopt;
+	const auto e = backend_->mapToEnu();
+	if (!e) return std::nullopt;
+	outputs::GeoOptions g;
+	g.mode = "enu_origin";
+	g.origin_lat_deg = gnss_origin_->enu.LatitudeOrigin();
+	g.origin_lon_deg = gnss_origin_->enu.LongitudeOrigin();
+	g.origin_alt_m = gnss_origin_->enu.HeightOrigin();
+	g.map_to_enu_yaw_rad = e->yaw;
+	g.map_to_enu_x_m = e->t.x();
+	g.map_to_enu_y_m = e->t.y();
+	g.map_to_enu_z_m = e->t.z();
+	return g;
 }
 
 }  // namespace forest_slam::pipeline

@@ -125,7 +125,8 @@ std::string stageTimesJson(const std::vector<odometry::ScanTiming>& t,
 }
 
 /** Back-end figures for run_summary.json ("null" without a back-end). */
-std::string loopJson(const loop::BackEnd* b)
+std::string loopJson(const loop::BackEnd* b,
+                     const std::optional<outputs::GeoOptions>& geo)
 {
 	if (!b) return "null";
 	const auto st = b->stats();
@@ -141,9 +142,20 @@ std::string loopJson(const loop::BackEnd* b)
 	   << ", \"wait_ms\": " << st.wait_ms
 	   << ", \"worker_cpu_ms\": " << st.worker_cpu_ms;
 	if (const auto e = b->mapToEnu())
+	{
 		os << ", \"map_to_enu\": {\"yaw_deg\": " << e->yaw * 180 / M_PI
 		   << ", \"x_m\": " << e->t.x() << ", \"y_m\": " << e->t.y()
-		   << ", \"z_m\": " << e->t.z() << "}";
+		   << ", \"z_m\": " << e->t.z();
+		if (geo)  // the ENU origin: the first fix
+		{
+			const auto prec = os.precision(10);
+			os << ", \"origin_lat_deg\": " << geo->origin_lat_deg
+			   << ", \"origin_lon_deg\": " << geo->origin_lon_deg;
+			os.precision(prec);
+			os << ", \"origin_alt_m\": " << geo->origin_alt_m;
+		}
+		os << "}";
+	}
 	os << "}";
 	return os.str();
 }
@@ -368,10 +380,22 @@ std::vector<std::string> writeOutputs(const MappingPipeline& p,
 	fig.wall_seconds = r.wall_seconds;
 	if (p.backEnd())
 		fig.loop_closures = static_cast<int>(p.backEnd()->stats().closures);
+	// Georeferenced outputs: [georeference] when given, else the map->ENU
+	// transform the back-end estimated from GNSS (ENU at the first fix).
+	outputs::GeoOptions geo = cfg.georeference;
+	if (!geo.enabled())
+		if (const auto g = p.estimatedGeoreference())
+		{
+			geo = *g;
+			FS_LOG_INFO("outputs georeferenced with the back-end's GNSS "
+			            "estimate: ENU at the first fix ("
+			            << geo.origin_lat_deg << ", " << geo.origin_lon_deg
+			            << ", " << geo.origin_alt_m << " m) -> UTM");
+		}
 	// trajectory, forest.map, trees.csv (the tree layer) and the rest.
 	const auto out = outputs::writeRunOutputs(
 		{p.trajectory(), p.forestMap(), p.outputCollector(), cfg.outputs,
-		 cfg.georeference, cfg.trees, fig},
+		 geo, cfg.trees, fig},
 		dir);
 	for (const auto& f : out.files) written.push_back(f.path);
 	const auto& col = p.outputCollector();
@@ -438,7 +462,8 @@ std::vector<std::string> writeOutputs(const MappingPipeline& p,
 		   << (col.scans() ? 1e3 * col.collectSeconds() / col.scans() : 0.0)
 		   << ",\n"
 		   << "  \"output_write_seconds\": " << out.seconds << ",\n"
-		   << "  \"loop\": " << loopJson(p.backEnd()) << ",\n"
+		   << "  \"loop\": " << loopJson(p.backEnd(), p.estimatedGeoreference())
+		   << ",\n"
 		   << "  \"keyframes\": " << out.keyframes << ",\n"
 		   << "  \"dense_points\": " << out.dense_points << ",\n"
 		   << "  \"peak_memory_mb\": " << outputs::peakMemoryMb() << ",\n"

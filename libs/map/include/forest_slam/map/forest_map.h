@@ -14,6 +14,7 @@
 #include <mrpt/poses/CPose3D.h>
 
 #include <Eigen/Geometry>
+#include <functional>
 #include <memory>
 #include <string>
 #include <unordered_map>
@@ -98,10 +99,26 @@ class CForestMap : public mrpt::maps::CMetricMap
 	                                   double radius_m) const;
 	SubmapKey submapKeyOf(const Eigen::Vector3f& p) const;
 
-	const std::unordered_map<SubmapKey, Submap, VoxelKeyHash>& submaps() const
-	{
-		return submaps_;
-	}
+	using SubmapTable = std::unordered_map<SubmapKey, Submap, VoxelKeyHash>;
+	/** The submaps of the current segment (all of them unless
+	 * startSegment was called since the last transformSegments). */
+	const SubmapTable& submaps() const { return submaps_; }
+
+	/** Loop corrections. Starts a new segment: the voxels of the points
+	 * inserted from now on are kept apart from the earlier ones (the
+	 * back-end moved the frame the points arrive in; averaged together,
+	 * the two would smear the map) until transformSegments merges them.
+	 * Point and memory counts include every segment; collectNear,
+	 * submapsNear, likelihood and the point views see the current one. */
+	void startSegment();
+	size_t segmentCount() const { return frozen_.size() + 1; }
+	/** Moves every voxel rigidly: its centroid c (segment s, 0 = oldest)
+	 * goes to T(s, c) * c, its sum and count kept, and merges the
+	 * segments into one map again (voxels landing in one voxel add up).
+	 * Submap by submap: memory about one map. */
+	void transformSegments(
+	    const std::function<Eigen::Isometry3f(size_t, const Eigen::Vector3f&)>&
+	        T);
 	size_t edgePointCount() const;
 	size_t planarPointCount() const;
 	/** Heap bytes of the submaps (estimate, core/memory.h). */
@@ -139,11 +156,13 @@ class CForestMap : public mrpt::maps::CMetricMap
 
    private:
 	TOptions opts_;
-	std::unordered_map<SubmapKey, Submap, VoxelKeyHash> submaps_;
+	SubmapTable submaps_;
+	std::vector<SubmapTable> frozen_;  ///< earlier segments, oldest first
 	std::vector<TreeRecord> trees_;
 	mutable std::shared_ptr<mrpt::maps::CSimplePointsMap> cached_points_;
 
-	Submap& submapFor(const Eigen::Vector3f& p);
+	Submap& submapFor(const Eigen::Vector3f& p) { return submapIn(submaps_, p); }
+	Submap& submapIn(SubmapTable& table, const Eigen::Vector3f& p) const;
 	/** Moves `pts` by T into the edge or planar clouds of their submaps. */
 	void insertPoints(const std::vector<Eigen::Vector3f>& pts, bool edges,
 	                  const Eigen::Isometry3f& T);

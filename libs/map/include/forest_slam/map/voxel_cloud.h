@@ -100,6 +100,14 @@ class VoxelCloud
 			      a);
 		    });
 	}
+	/** Adds a voxel's points (sum and count) to voxel `key` (keyOf a point
+	 * inside it): merging moved voxels. */
+	void add(uint64_t key, const Accum& a)
+	{
+		auto& v = voxels_[key];
+		v.sum += a.sum;
+		v.count += a.count;
+	}
 	/** Restores one voxel (deserialization); replaces an existing one. */
 	void setVoxel(const VoxelKey& k, const Accum& a);
 

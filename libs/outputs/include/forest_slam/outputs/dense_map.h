@@ -14,6 +14,7 @@
 #include <Eigen/Core>
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <unordered_map>
 #include <vector>
@@ -52,6 +53,16 @@ class DenseMap
 	 * Returns the number of tiles moved. */
 	size_t spillFar(const Eigen::Vector2d& centre, double radius_m,
 	                const std::shared_ptr<core::SpillFile>& spill);
+
+	/** Moves every point with `move` (a loop correction: the pose of the
+	 * point's scan changed) and keeps them again one per voxel, tile by
+	 * tile (where two moved points meet in a voxel, the earlier
+	 * measurement stays, as when collecting). The old tiles are released as they are
+	 * read (memory: about one map); with a spill file, the new tiles
+	 * farther than spill_radius_m from the tile being moved go to it, as
+	 * spillFar does during the run. */
+	void transformPoints(const std::function<void(DensePoint&)>& move,
+	                     double spill_radius_m);
 
 	/** f(const std::vector<DensePoint>&) once per tile with points, in the
 	 * order the tiles were created, points in the order they were kept;
@@ -119,6 +130,9 @@ class DenseMap
 	Tile& tileFor(uint64_t voxel_key);
 	static void grow(Tile& t);
 	void reload(Tile& t);
+	/** Adds p, or replaces the point of its voxel if p was measured
+	 * earlier (transformPoints). */
+	void keepEarlier(const DensePoint& p);
 	DensePoint* claimIn(Tile& t, uint64_t key, const Eigen::Vector3f& xyz);
 };
 

@@ -30,6 +30,9 @@ class Georeference
 	/** Easting, northing [m] in the UTM zone, ellipsoidal height [m]. */
 	Eigen::Vector3d toProjected(const Eigen::Vector3d& map_xyz) const;
 	LatLonAlt toLatLon(const Eigen::Vector3d& map_xyz) const;
+	/** enu_origin: East-North-Up at the origin (the map frame itself
+	 * unless the options carry an estimated map->ENU transform). */
+	Eigen::Vector3d toEnu(const Eigen::Vector3d& map_xyz) const;
 
 	int utmZone() const { return zone_; }
 	bool north() const { return north_; }

@@ -79,6 +79,11 @@ struct GeoOptions : public mrpt::config::CLoadableOptions
 	int utm_zone = 0;
 	bool utm_north = true;
 	double utm_offset_e_m = 0, utm_offset_n_m = 0, utm_offset_h_m = 0;
+	/** enu_origin: map -> ENU = Rz(yaw) * p + (x, y, z). Not INI keys: the
+	 * back-end's GNSS estimate sets them (MappingPipeline::
+	 * estimatedGeoreference); from the INI the map frame is the ENU frame. */
+	double map_to_enu_yaw_rad = 0;
+	double map_to_enu_x_m = 0, map_to_enu_y_m = 0, map_to_enu_z_m = 0;
 
 	void loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 	                        const std::string& section) override;

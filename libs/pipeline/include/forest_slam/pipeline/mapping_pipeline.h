@@ -91,6 +91,10 @@ class MappingPipeline
 	const loop::BackEnd* backEnd() const { return backend_.get(); }
 	/** nullptr unless pose_source = odometry. */
 	const odometry::LidarOdometry* odometry() const { return odometry_.get(); }
+	/** The georeference the back-end estimated from GNSS (an
+	 * `enu_origin` at the first fix with the estimated map->ENU transform),
+	 * nullopt without GNSS estimate. Valid after finish(). */
+	std::optional<outputs::GeoOptions> estimatedGeoreference() const;
 	/** nullptr when [trees] layer_enabled = false. */
 	const trees::TreeLayer* treeLayer() const { return tree_layer_.get(); }
 
@@ -196,7 +200,15 @@ class MappingPipeline
 	double last_gnss_fix_s_ = -1;  ///< time of the last fix passed on
 	struct GnssOrigin;
 	std::shared_ptr<GnssOrigin> gnss_origin_;
+	/** CForestMap segments (CForestMap::startSegment): the first scan of
+	 * each segment after the first; a new one starts after a correction
+	 * that moves the map by more than half an edge voxel. */
+	std::vector<size_t> map_segment_first_scan_;
 	void initBackEnd();
+	/** The dense map and the CForestMap follow the corrections: `mapped`
+	 * is the trajectory as the scans were mapped. */
+	void correctDenseMap(const core::Trajectory& mapped);
+	void correctForestMap(const core::Trajectory& mapped);
 	/** After the odometry posed scan `s`: may move `pose` (correction). */
 	void backEndScan(const PendingScan& s, core::StampedPose& pose);
 	void backEndGnss(const mrpt::obs::CObservation& obs);
