@@ -47,6 +47,20 @@ SpillFile::~SpillFile()
 uint64_t SpillFile::append(const void* data, size_t bytes)
 {
 	const uint64_t at = end_;
+	writeAt(at, data, bytes);
+	end_ += bytes;
+	return at;
+}
+
+void SpillFile::overwrite(uint64_t offset, const void* data, size_t bytes)
+{
+	if (offset + bytes > end_)
+		throw std::logic_error("SpillFile::overwrite beyond the end");
+	writeAt(offset, data, bytes);
+}
+
+void SpillFile::writeAt(uint64_t at, const void* data, size_t bytes)
+{
 	const char* p = static_cast<const char*>(data);
 	size_t done = 0;
 	while (done < bytes)
@@ -59,8 +73,6 @@ uint64_t SpillFile::append(const void* data, size_t bytes)
 			                         "': " + errorText());
 		done += static_cast<size_t>(n);
 	}
-	end_ += bytes;
-	return at;
 }
 
 void SpillFile::read(uint64_t offset, void* data, size_t bytes) const

@@ -6,7 +6,6 @@
 #include <cmath>
 #include <cstdint>
 #include <stdexcept>
-#include <tuple>
 
 namespace forest_slam::outputs
 {
@@ -141,6 +140,8 @@ size_t DenseMap::tilesSpilled() const
 
 DensePoint* DenseMap::claim(const Eigen::Vector3f& xyz)
 {
+	if (moved_)
+		throw std::logic_error("DenseMap: points added after transformPoints");
 	uint64_t key;
 	if (!xyz.allFinite() || !voxelKey(xyz, inv_voxel_, key)) return nullptr;
 	Tile& t = tileFor(key);
@@ -166,38 +167,10 @@ DensePoint* DenseMap::claimIn(Tile& t, uint64_t key, const Eigen::Vector3f& xyz)
 	return &t.points.back();
 }
 
-void DenseMap::keepEarlier(const DensePoint& p)
-{
-	uint64_t key;
-	if (!p.xyz.allFinite() || !voxelKey(p.xyz, inv_voxel_, key)) return;
-	Tile& t = tileFor(key);
-	if (t.spilled) reload(t);
-	size_t slot = slotOf(key, t.mask);
-	while (t.keys[slot] != kEmpty)
-	{
-		if (t.keys[slot] == key)
-		{
-			// The earlier measurement stays (ties: the lower point), so
-			// the result does not depend on the order of the tiles.
-			DensePoint& q = t.points[t.index[slot]];
-			const auto rank = [](const DensePoint& a)
-			{ return std::make_tuple(a.t_s, a.xyz.z(), a.xyz.y(), a.xyz.x()); };
-			if (rank(p) < rank(q))
-			{
-				q = p;
-				t.changed = true;
-			}
-			return;
-		}
-		slot = (slot + 1) & t.mask;
-	}
-	*claimIn(t, key, p.xyz) = p;
-}
-
 void DenseMap::prefetch(const Eigen::Vector3f& xyz) const
 {
 	uint64_t key;
-	if (!xyz.allFinite() || !voxelKey(xyz, inv_voxel_, key)) return;
+	if (moved_ || !xyz.allFinite() || !voxelKey(xyz, inv_voxel_, key)) return;
 	const Tile* t = findTile(key);
 	if (t && !t->spilled) __builtin_prefetch(&t->keys[slotOf(key, t->mask)]);
 }
@@ -239,7 +212,7 @@ void DenseMap::grow(Tile& t)
 size_t DenseMap::spillFar(const Eigen::Vector2d& centre, double radius_m,
                           const std::shared_ptr<core::SpillFile>& spill)
 {
-	if (tile_vox_ == 0 || !spill) return 0;
+	if (tile_vox_ == 0 || !spill || moved_) return 0;
 	if (spill_ && spill_ != spill)
 		throw std::logic_error("DenseMap::spillFar: another spill file");
 	spill_ = spill;
@@ -272,39 +245,29 @@ size_t DenseMap::spillFar(const Eigen::Vector2d& centre, double radius_m,
 	return moved;
 }
 
-void DenseMap::transformPoints(const std::function<void(DensePoint&)>& move,
-                               double spill_radius_m)
+void DenseMap::transformPoints(const std::function<void(DensePoint&)>& move)
 {
-	DenseMap out(voxel_m_);
-	out.tile_vox_ = tile_vox_;
-	out.t0_ = t0_;
-	const double edge = tile_vox_ * voxel_m_;
 	std::vector<DensePoint> buf;
 	for (auto& tp : tiles_)
 	{
 		Tile& t = *tp;
 		if (t.spilled)
-			spill_->readVector(t.spill_offset, t.spill_count, buf);
-		else
 		{
-			buf.swap(t.points);
-			std::vector<DensePoint>().swap(t.points);
+			// In place in the spill file: memory one tile, no more disk.
+			spill_->readVector(t.spill_offset, t.spill_count, buf);
+			for (auto& p : buf) move(p);
+			spill_->overwriteVector(t.spill_offset, buf);
+			continue;
 		}
+		for (auto& p : t.points) move(p);
+		t.changed = true;
+		// The voxel table no longer matches the points.
 		std::vector<uint64_t>().swap(t.keys);
 		std::vector<uint32_t>().swap(t.index);
-		for (auto& p : buf)
-		{
-			move(p);
-			out.keepEarlier(p);
-		}
-		if (spill_ && tile_vox_ > 0)
-			out.spillFar(
-			    Eigen::Vector2d((t.tx + 0.5) * edge, (t.ty + 0.5) * edge),
-			    spill_radius_m, spill_);
-		tp.reset();
+		t.mask = 0;
 	}
-	if (!out.spill_) out.spill_ = spill_;
-	*this = std::move(out);
+	moved_ = true;
+	have_last_ = false;
 }
 
 void DenseMap::reload(Tile& t)

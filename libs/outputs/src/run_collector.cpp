@@ -207,7 +207,7 @@ void RunCollector::collect(
 void RunCollector::transformDense(const std::function<void(DensePoint&)>& move)
 {
 	worker_.flush();
-	dense_.transformPoints(move, o_.dense_max_range_m + o_.dense_tile_m);
+	dense_.transformPoints(move);
 }
 
 size_t RunCollector::keyframeBytes() const

@@ -14,6 +14,7 @@
 #include <GeographicLib/LocalCartesian.hpp>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <unordered_map>
 
@@ -253,8 +254,19 @@ void MappingPipeline::finishBackEnd()
 	// optimised.
 	if (backend_->stats().optimisations > 0 && !mapped.empty())
 	{
+		const auto t0 = std::chrono::steady_clock::now();
+		const size_t segments = map_.segmentCount();
 		correctDenseMap(mapped);
+		const auto t1 = std::chrono::steady_clock::now();
 		correctForestMap(mapped);
+		const auto t2 = std::chrono::steady_clock::now();
+		using S = std::chrono::duration<double>;
+		FS_LOG_INFO(
+		    "back-end corrections: dense map ("
+		    << outputs_.dense().size() << " points) moved in "
+		    << S(t1 - t0).count() << " s, CForestMap (" << segments
+		    << " segments, " << map_.edgePointCount() + map_.planarPointCount()
+		    << " voxels once merged) in " << S(t2 - t1).count() << " s");
 	}
 	// Tree layer: each column moves with the correction of the scan that
 	// passed nearest to its centre (as mapped).

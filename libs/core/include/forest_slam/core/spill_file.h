@@ -26,11 +26,18 @@ class SpillFile
 	 * (disk full) naming the folder. */
 	uint64_t append(const void* data, size_t bytes);
 	void read(uint64_t offset, void* data, size_t bytes) const;
+	/** Replaces bytes already written (same length, in place). */
+	void overwrite(uint64_t offset, const void* data, size_t bytes);
 
 	template <class T>
 	uint64_t appendVector(const std::vector<T>& v)
 	{
 		return append(v.data(), v.size() * sizeof(T));
+	}
+	template <class T>
+	void overwriteVector(uint64_t offset, const std::vector<T>& v)
+	{
+		overwrite(offset, v.data(), v.size() * sizeof(T));
 	}
 	template <class T>
 	void readVector(uint64_t offset, size_t n, std::vector<T>& v) const
@@ -44,6 +51,7 @@ class SpillFile
 	const std::string& dir() const { return dir_; }
 
    private:
+	void writeAt(uint64_t at, const void* data, size_t bytes);
 	std::string dir_;
 	int fd_ = -1;
 	uint64_t end_ = 0;

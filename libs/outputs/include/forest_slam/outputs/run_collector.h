@@ -101,9 +101,9 @@ class RunCollector
 		worker_.flush();
 		keyframes_.at(i).sensor_pose = T;
 	}
-	/** Loop correction of the dense map: every point moved by `move` (from
-	 * its time: the correction of its scan) and kept again one per voxel
-	 * (DenseMap::transformPoints; spilled tiles stay bounded by area). */
+	/** Loop correction of the dense map at the end of the run: every point
+	 * moved by `move` (from its time: the correction of its scan), in
+	 * place (DenseMap::transformPoints). No scan may be added after. */
 	void transformDense(const std::function<void(DensePoint&)>& move);
 	const DenseMap& dense() const
 	{
