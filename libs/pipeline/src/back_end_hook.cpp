@@ -12,6 +12,7 @@
 #include <mrpt/obs/CObservationGPS.h>
 #include <mrpt/system/datetime.h>
 #include <GeographicLib/LocalCartesian.hpp>
+#include <malloc.h>
 
 #include <algorithm>
 #include <chrono>
@@ -259,6 +260,9 @@ void MappingPipeline::finishBackEnd()
 		correctDenseMap(mapped);
 		const auto t1 = std::chrono::steady_clock::now();
 		correctForestMap(mapped);
+		// The tables freed on the way go back to the system (glibc keeps
+		// freed heap otherwise: +280 MB RSS on the handheld run).
+		malloc_trim(0);
 		const auto t2 = std::chrono::steady_clock::now();
 		using S = std::chrono::duration<double>;
 		FS_LOG_INFO(
