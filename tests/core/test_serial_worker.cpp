@@ -3,6 +3,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <future>
 #include <stdexcept>
 #include <thread>
 #include <vector>
@@ -75,8 +76,19 @@ TEST(SerialWorker, RethrowsAJobErrorOnceAndDropsTheJobsAfterIt)
 {
 	SerialWorker w(4);
 	int ran_after = 0;
-	w.push([] { throw std::runtime_error("disk full"); });
+	// The failing job waits until the next one is queued: a push() after
+	// the failure would rethrow it there instead (ThreadSanitizer's timing
+	// found this race in the test).
+	std::promise<void> queued;
+	std::shared_future<void> next_is_queued = queued.get_future().share();
+	w.push(
+	    [next_is_queued]
+	    {
+		    next_is_queued.wait();
+		    throw std::runtime_error("disk full");
+	    });
 	w.push([&] { ran_after++; });
+	queued.set_value();
 	try
 	{
 		w.flush();
