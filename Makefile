@@ -4,7 +4,7 @@ BUILD_DIR ?= build
 JOBS ?= 2
 DEMO_DIR ?= $(BUILD_DIR)/demo
 
-.PHONY: all deps configure build test demo bench format clean test-asan fuzz
+.PHONY: all deps configure build test demo bench format clean test-asan test-tsan fuzz
 
 all: build
 
@@ -39,6 +39,21 @@ test-asan: deps
 	  LSAN_OPTIONS=suppressions=$(CURDIR)/tests/sanitizer/lsan.supp \
 	  UBSAN_OPTIONS=print_stacktrace=1:suppressions=$(CURDIR)/tests/sanitizer/ubsan.supp \
 	  ctest --output-on-failure -j $(JOBS) --timeout 3600 $(ASAN_CTEST_ARGS)
+
+# ThreadSanitizer (-O1 -g, build-tsan) on the tests whose code runs worker
+# threads: SerialWorker (local map, CForestMap inserter, output collector),
+# the parallel correspondence search, the loop-closure back-end, the online
+# grabber and recorder, and the whole app end to end (doc/reliability.md).
+TSAN_DIR ?= build-tsan
+TSAN_TESTS ?= test_core test_odometry test_loop test_pipeline test_outputs \
+  test_map test_trees test_online test_forest_slam_app
+empty :=
+space := $(empty) $(empty)
+test-tsan: deps
+	cmake -S . -B $(TSAN_DIR) -DCMAKE_BUILD_TYPE=Release -DFOREST_SLAM_SANITIZE=thread $(LAUNCHER)
+	cmake --build $(TSAN_DIR) -j $(JOBS) --target $(TSAN_TESTS)
+	cd $(TSAN_DIR) && TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1:suppressions=$(CURDIR)/tests/sanitizer/tsan.supp \
+	  ctest --output-on-failure -j $(JOBS) --timeout 3600 -R '^($(subst $(space),|,$(strip $(TSAN_TESTS))))$$'
 
 # libFuzzer on the LAS reader, the ROS message decoders and the INI loader,
 # FUZZ_SECONDS each (clang, build-fuzz); crashes land in build-fuzz/crashes.
