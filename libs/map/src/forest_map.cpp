@@ -222,38 +222,7 @@ void CForestMap::startSegment()
 void CForestMap::transformSegments(
     const std::function<Eigen::Isometry3f(size_t, const Eigen::Vector3f&)>& T)
 {
-	// Each new submap gets at once the room its key held in all segments
-	// (most voxels stay in their submap): no table growing by doubling,
-	// whose freed halves kept the process's memory up (handheld run: peak
-	// RSS +340 MB).
-	std::unordered_map<SubmapKey, std::pair<size_t, size_t>, VoxelKeyHash>
-	    room;
-	const auto count = [&](const SubmapTable& t)
-	{
-		for (const auto& kv : t)
-		{
-			auto& r = room[kv.first];
-			r.first += kv.second.edge.size();
-			r.second += kv.second.planar.size();
-		}
-	};
-	for (const auto& t : frozen_) count(t);
-	count(submaps_);
 	SubmapTable out;
-	const auto target = [&](const Eigen::Vector3f& q) -> Submap&
-	{
-		const SubmapKey k = submapKeyOf(q);
-		const auto it = out.find(k);
-		if (it != out.end()) return it->second;
-		Submap& sm = submapIn(out, q);
-		const auto r = room.find(k);
-		if (r != room.end())
-		{
-			sm.edge.reserve(r->second.first);
-			sm.planar.reserve(r->second.second);
-		}
-		return sm;
-	};
 	const auto move = [&](SubmapTable& table, size_t segment)
 	{
 		// Each submap is released once moved.
@@ -269,7 +238,7 @@ void CForestMap::transformSegments(
 					        VoxelCloud::Accum b;
 					        b.sum = q * static_cast<float>(a.count);
 					        b.count = a.count;
-					        Submap& sm = target(q);
+					        Submap& sm = submapIn(out, q);
 					        VoxelCloud& c = edges ? sm.edge : sm.planar;
 					        c.add(c.keyOf(q), b);
 				        });
