@@ -203,11 +203,14 @@ TEST_F(LoopOnSim, DescriptorClosesBeyondTheSearchRadius)
 	// A natural stand (ini/sim-tiny.ini's world, no clearing at the start)
 	// driven out and back by the robot, 2 x 16 m: every place is seen again
 	// on the way back, heading reversed. Drift injected: 0.3 deg/m of yaw;
-	// the geometric search confined to 0.5 m, so the first closures must
-	// come from the place descriptor (180 deg of yaw between the visits)
-	// until the estimate is corrected. (At 1.5 deg/m the descriptor's
-	// closures were right, but two geometric ones after them were 6 and 11
-	// deg off in yaw: an 8-keyframe submap is itself bent by 12 deg then.)
+	// candidates at least 20 m back; the geometric search confined to
+	// 0.5 m, which the drift exceeds by then: it finds no candidate at all
+	// (measured with descriptor = false: no closure, return to start 1.37 m,
+	// 9.6 deg). The place descriptor must find the loop (180 deg of yaw
+	// between the visits); once the estimate is corrected the geometric
+	// search finds the next closures. (A drift of 1.5 deg/m bends an
+	// 8-keyframe submap by 12 deg: the geometric closures after the
+	// descriptor's were then 6-11 deg off in yaw.)
 	std::string sim = readAll(src + "/ini/sim-tiny.ini");
 	const auto m0 = sim.find("[motion]"), m1 = sim.find("[lidar]");
 	const auto open = sim.find("open_area_radius_m = ");
@@ -235,7 +238,7 @@ TEST_F(LoopOnSim, DescriptorClosesBeyondTheSearchRadius)
 	    "trajectory_kitti = false\n[trees]\nlayer_enabled = false\n";
 	const std::string ini =
 	    loopIni(src + "/ini/vlp16-robot.ini",
-	            "min_travel_m = 10\ndetect_every_keyframes = 1\n"
+	            "min_travel_m = 20\ndetect_every_keyframes = 1\n"
 	            "closure_spacing_keyframes = 2\ninject_yaw_deg_per_m = 0.3\n"
 	            "inject_z_m_per_m = 0.005\nsearch_radius_m = 0.5\n"
 	            "search_drift_fraction = 0\ndescriptor = true");
@@ -256,9 +259,8 @@ TEST_F(LoopOnSim, DescriptorClosesBeyondTheSearchRadius)
 	EXPECT_EQ(v.false_closures, 0);
 	EXPECT_GE(v.descriptor, 1);
 	EXPECT_TRUE(v.first_by_descriptor);
-	// Measured: 11 closures (the first by the descriptor), worst 0.15 m,
-	// 2.1 deg from the GT (2.4 deg of drift inside a submap); return to
-	// start 0.076 m, 0.49 deg.
-	EXPECT_LT(r["total_trans_m"].asDouble(), 0.15);
-	EXPECT_LT(r["angle_deg"].asDouble(), 0.8);
+	// Measured: 8 closures (the first by the descriptor), none false;
+	// return to start 0.107 m, 0.69 deg (drift alone: 1.37 m, 9.6 deg).
+	EXPECT_LT(r["total_trans_m"].asDouble(), 0.2);
+	EXPECT_LT(r["angle_deg"].asDouble(), 1.2);
 }
