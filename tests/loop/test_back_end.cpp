@@ -138,3 +138,82 @@ TEST(BackEnd, RefusesTheNeighbouringRowOfAPlantation)
 		    << "false closure " << c.from << " -> " << c.to;
 	}
 }
+
+TEST(BackEnd, DescriptorClosesALoopBeyondTheSearchRadius)
+{
+	// 1 deg/m of yaw drift: the end of the loop is metres from its start
+	// in the estimate, beyond the geometric search radius.
+	const auto stems = makeStems(5, 40);
+	const Walk w = circle(6, 1.0);
+	const double before =
+	    (w.odom.back().translation() - w.truth.back().translation()).norm();
+	LoopOptions o = options();
+	// The geometric search confined to 1 m (the drift, 3.5 m, is beyond).
+	o.search_radius_m = 1.0;
+	o.search_drift_fraction = 0;
+	ASSERT_GT(before, 3.0);
+	o.descriptor = false;
+	std::vector<Closure> closures;
+	run(w, stems, o, false, &closures);
+	for (const auto& c : closures) EXPECT_FALSE(c.accepted);
+	o.descriptor = true;
+	const Poses X = run(w, stems, o, false, &closures);
+	size_t accepted = 0, by_descriptor = 0;
+	for (const auto& c : closures)
+	{
+		std::cout << (c.descriptor ? "descriptor " : "geometric ") << c.from
+		          << " -> " << c.to << ": "
+		          << (c.accepted ? "accepted" : c.reason) << " distance "
+		          << c.descriptor_distance << " overlap " << c.overlap
+		          << " chi2 " << c.chi2 << "\n";
+		if (!c.accepted) continue;
+		accepted++;
+		by_descriptor += c.descriptor;
+		const Eigen::Isometry3d e =
+		    (w.truth[c.from].inverse() * w.truth[c.to]).inverse() * c.T;
+		EXPECT_LT(e.translation().norm(), 0.05);
+	}
+	// The descriptor closes the loop first; once the estimate is corrected
+	// the geometric search may find the next ones.
+	EXPECT_GE(by_descriptor, 1u);
+	const double after =
+	    (X.back().translation() - w.truth.back().translation()).norm();
+	std::cout << "end error " << before << " m -> " << after << " m\n";
+	EXPECT_LT(after, 0.2);
+}
+
+TEST(BackEnd, DescriptorRefusesThePlantationFarFromTheEstimate)
+{
+	// Rows 3 m apart; the estimate ends 9 m aside, the geometric search is
+	// off (1 cm): only descriptor candidates, which find look-alike places
+	// everywhere; none may be accepted at a wrong place. (With the
+	// geometric search on, a candidate near the wrong estimate can pass:
+	// the drift prior backs the estimate.)
+	const auto stems = makeStems(1, 40, true, 3.0);
+	Walk w = circle(6, 0.0);
+	for (size_t i = 0; i < w.odom.size(); i++)
+		w.odom[i] =
+		    poseXYZYaw(0, 9.0 * w.travelled[i] / w.travelled.back(), 0, 0) *
+		    w.odom[i];
+	LoopOptions o = options();
+	o.search_radius_m = 0.01;
+	o.search_drift_fraction = 0;
+	std::vector<Closure> closures;
+	run(w, stems, o, false, &closures);
+	size_t descriptor = 0;
+	for (const auto& c : closures)
+	{
+		descriptor += c.descriptor;
+		std::cout << (c.descriptor ? "descriptor " : "geometric ") << c.from
+		          << " -> " << c.to << ": "
+		          << (c.accepted ? "accepted" : c.reason) << " distance "
+		          << c.descriptor_distance << " overlap " << c.overlap
+		          << " rmse " << c.rmse_m << " chi2 " << c.chi2 << "\n";
+		if (!c.accepted) continue;
+		const Eigen::Isometry3d e =
+		    (w.truth[c.from].inverse() * w.truth[c.to]).inverse() * c.T;
+		EXPECT_LT(e.translation().norm(), 0.3)
+		    << "false closure " << c.from << " -> " << c.to;
+	}
+	EXPECT_GT(descriptor, 0u);
+}

@@ -153,6 +153,14 @@ void BackEnd::processKeyframe(Keyframe& kf)
 	}
 	kfs_.push_back(std::move(kf));
 	stats_.keyframes++;
+	if (o_.descriptor)
+	{
+		Poses recent(id + 1);
+		const size_t m = static_cast<size_t>(o_.descriptor_keyframes);
+		for (size_t i = id >= m ? id - m : 0; i <= id; i++)
+			recent[i] = graph_.pose(i);
+		descriptors_.push_back(keyframeDescriptor(kfs_, recent, id, o_));
+	}
 
 	bool changed = false;
 	if (id >= next_attempt_ &&
@@ -161,15 +169,27 @@ void BackEnd::processKeyframe(Keyframe& kf)
 		Poses poses(graph_.size());
 		for (size_t i = 0; i < graph_.size(); i++) poses[i] = graph_.pose(i);
 		const auto t = std::chrono::steady_clock::now();
-		for (size_t j : loopCandidates(kfs_, poses, id, o_))
+		// Geometric candidates first, then the descriptor's best matches
+		// elsewhere.
+		const auto near = loopCandidates(kfs_, poses, id, o_);
+		std::vector<std::pair<size_t, std::optional<DescriptorMatch>>> cands;
+		for (size_t j : near) cands.emplace_back(j, std::nullopt);
+		if (o_.descriptor)
+			for (const auto& d :
+			     descriptorCandidates(kfs_, poses, descriptors_, id, near, o_))
+				cands.emplace_back(d.from, d.match);
+		for (const auto& [j, match] : cands)
 		{
 			stats_.candidates++;
-			Closure c = verifyClosure(kfs_, poses, j, id, o_);
+			stats_.descriptor_candidates += match.has_value();
+			Closure c = verifyClosure(kfs_, poses, j, id, o_,
+			                          match ? &*match : nullptr);
 			closures_.push_back(c);
-			FS_LOG_DEBUG("loop " << j << " -> " << id << ": "
-			                     << (c.accepted ? "accepted" : c.reason)
-			                     << " overlap " << c.overlap << " rmse "
-			                     << c.rmse_m << " chi2 " << c.chi2);
+			FS_LOG_DEBUG("loop "
+			             << j << " -> " << id << (match ? " (descriptor)" : "")
+			             << ": " << (c.accepted ? "accepted" : c.reason)
+			             << " overlap " << c.overlap << " rmse " << c.rmse_m
+			             << " chi2 " << c.chi2);
 			if (!c.accepted) continue;
 			RelativeFactor f;
 			f.a = j;
@@ -180,6 +200,7 @@ void BackEnd::processKeyframe(Keyframe& kf)
 			f.robust = false;  // verified hard; a kernel would ignore big drift
 			graph_.addFactor(f);
 			stats_.closures++;
+			stats_.descriptor_closures += match.has_value();
 			changed = true;
 			next_attempt_ =
 			    id + static_cast<size_t>(o_.closure_spacing_keyframes);

@@ -18,6 +18,15 @@ namespace forest_slam::loop
 	X(detect_every_keyframes)    \
 	X(closure_spacing_keyframes) \
 	X(submap_keyframes)          \
+	X(descriptor)                \
+	X(descriptor_rings)          \
+	X(descriptor_sectors)        \
+	X(descriptor_radius_m)       \
+	X(descriptor_keyframes)      \
+	X(descriptor_retrieval)      \
+	X(descriptor_max_distance)   \
+	X(descriptor_distinct_ratio) \
+	X(descriptor_candidates)     \
 	X(icp_iterations)            \
 	X(icp_max_points)            \
 	X(icp_start_distance_m)      \
@@ -95,6 +104,20 @@ void LoopOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 	if (icp_max_points != 0 && icp_max_points < 200)
 		throw core::ConfigError(where +
 		                        "icp_max_points must be 0 (all) or >= 200");
+	if (descriptor_rings < 2 || descriptor_sectors < 8 ||
+	    descriptor_keyframes < 0 || descriptor_retrieval < 1 ||
+	    descriptor_candidates < 1)
+		throw core::ConfigError(
+		    where +
+		    "descriptor_rings must be >= 2, descriptor_sectors >= 8, "
+		    "descriptor_retrieval and descriptor_candidates >= 1, "
+		    "descriptor_keyframes >= 0");
+	positive(descriptor_radius_m, "descriptor_radius_m");
+	if (!(descriptor_max_distance > 0 && descriptor_max_distance < 1) ||
+	    !(descriptor_distinct_ratio > 0 && descriptor_distinct_ratio <= 1))
+		throw core::ConfigError(where +
+		                        "descriptor_max_distance must be in (0, 1), "
+		                        "descriptor_distinct_ratio in (0, 1]");
 	if (icp_final_distance_m > icp_start_distance_m)
 		throw core::ConfigError(
 		    where + "icp_final_distance_m must be <= icp_start_distance_m");

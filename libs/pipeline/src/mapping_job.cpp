@@ -134,6 +134,8 @@ std::string loopJson(const loop::BackEnd* b,
 	os << "{\"keyframes\": " << st.keyframes
 	   << ", \"candidates\": " << st.candidates
 	   << ", \"closures\": " << st.closures
+	   << ", \"descriptor_candidates\": " << st.descriptor_candidates
+	   << ", \"descriptor_closures\": " << st.descriptor_closures
 	   << ", \"optimisations\": " << st.optimisations
 	   << ", \"gnss_fixes\": " << st.gnss_fixes
 	   << ", \"gnss_outliers\": " << st.gnss_outliers
@@ -170,7 +172,7 @@ void writeLoopClosures(const loop::BackEnd& b, const std::string& path)
 	    [&](std::ostream& os)
 	    {
 		os << "from_t_s,to_t_s,accepted,reason,overlap,rmse_m,chi2,"
-		      "travelled_m,x,y,z,qx,qy,qz,qw\n";
+		      "travelled_m,x,y,z,qx,qy,qz,qw,candidate,descriptor_distance\n";
 		os << std::fixed;
 		os.precision(6);
 		for (const auto& c : b.closures())
@@ -182,7 +184,9 @@ void writeLoopClosures(const loop::BackEnd& b, const std::string& path)
 			       << c.travelled_m << ',' << c.T.translation().x() << ','
 			       << c.T.translation().y() << ',' << c.T.translation().z()
 			       << ',' << q.x() << ',' << q.y() << ',' << q.z() << ','
-			       << q.w() << '\n';
+			       << q.w() << ','
+			       << (c.descriptor ? "descriptor" : "geometric") << ','
+			       << (c.descriptor ? c.descriptor_distance : 0.0) << '\n';
 		}
 	});
 }

@@ -35,6 +35,8 @@ struct GnssFix
 struct BackEndStats
 {
 	size_t keyframes = 0, candidates = 0, closures = 0, optimisations = 0;
+	/** Of candidates / closures: those from the place descriptor. */
+	size_t descriptor_candidates = 0, descriptor_closures = 0;
 	size_t gnss_fixes = 0, gnss_outliers = 0;
 	double verify_ms = 0, optimise_ms = 0;  ///< worker CPU-side totals
 	/** Time the pipeline waited in resultAt for the worker (the back-end
@@ -100,6 +102,7 @@ class BackEnd
 	std::thread worker_;
 	// Worker state (only the worker touches it until finish()).
 	std::vector<Keyframe> kfs_;
+	std::vector<PlaceDescriptor> descriptors_;  ///< one per keyframe
 	PoseGraph graph_;
 	std::vector<Closure> closures_;
 	BackEndStats stats_;

@@ -28,6 +28,23 @@ struct LoopOptions : public mrpt::config::CLoadableOptions
 	 * keyframes (a closure every few metres is plenty). */
 	int closure_spacing_keyframes = 5;
 	int submap_keyframes = 8;  ///< keyframes each side in the ICP clouds
+	// Place descriptor (Scan Context-style, place_descriptor.h): candidates
+	// anywhere in the current estimate, for drift beyond the search radius.
+	bool descriptor = true;
+	int descriptor_rings = 20;
+	int descriptor_sectors = 60;
+	double descriptor_radius_m = 20.0;
+	/** The descriptor's cloud: the keyframe and this many predecessors. */
+	int descriptor_keyframes = 4;
+	/** Keyframes whose ring key is nearest are compared in full. */
+	int descriptor_retrieval = 10;
+	/** Matches farther than this (0 = identical, 1 = unrelated) are not
+	 * candidates. */
+	double descriptor_max_distance = 0.45;
+	/** The best match must be below this times the best match at another
+	 * place (else ambiguous: no descriptor candidate). */
+	double descriptor_distinct_ratio = 0.9;
+	int descriptor_candidates = 1;  ///< best matches verified per attempt
 	// Verification (point-to-plane ICP with a Cauchy kernel).
 	int icp_iterations = 50;
 	/** The current submap (ICP source) is thinned to at most this many
