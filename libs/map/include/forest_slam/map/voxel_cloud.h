@@ -64,7 +64,6 @@ class VoxelCloud
 	}
 	void prefetch(uint64_t key) const { voxels_.prefetch(key); }
 	size_t size() const { return voxels_.size(); }
-	/** Room for n voxels without growing the table. */
 	bool empty() const { return voxels_.empty(); }
 	void clear() { voxels_.clear(); }
 	/** Heap bytes held (estimate, core/memory.h). */
