@@ -48,11 +48,20 @@ void OdometryOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
 	c.write(s, "sweep_motion_without_imu", sweep_motion_without_imu);
 }
 
+namespace
+{
+/** Jobs queued on the CForestMap thread at most: a scan's insertion is a
+ * few milliseconds, a tree-layer column detection (runOnMap) hundreds, and
+ * the queue absorbs one without stopping the odometry (a job holds one
+ * scan's points, ~0.3 MB). */
+constexpr size_t kMapQueue = 48;
+}  // namespace
+
 LidarOdometry::LidarOdometry(const OdometryConfig& cfg, map::CForestMap& map)
     : cfg_(cfg),
       local_map_(cfg.local_map, cfg.registration.plane_flatness),
       map_(map),
-      inserter_(map, cfg.odometry.async_map_insert ? 4 : 0),
+      inserter_(map, cfg.odometry.async_map_insert ? kMapQueue : 0),
       local_worker_(cfg.odometry.async_map_insert ? 2 : 0),
       lattice_(cfg.ground)
 {

@@ -17,4 +17,9 @@ void MapInserter::push(std::vector<Eigen::Vector3f> edges,
 	              sensor_to_map] { map_.insertFeatures(e, p, sensor_to_map); });
 }
 
+void MapInserter::run(std::function<void(map::CForestMap&)> job)
+{
+	worker_.push([this, j = std::move(job)] { j(map_); });
+}
+
 }  // namespace forest_slam::odometry

@@ -59,6 +59,20 @@ MappingPipeline::MappingPipeline(const MappingConfig& cfg,
 	initBackEnd();
 }
 
+MappingPipeline::~MappingPipeline()
+{
+	try
+	{
+		if (odometry_) odometry_->flushMap();
+	}
+	catch (const std::exception& e)
+	{
+		// A failed job was already reported by the call that rethrew it,
+		// unless the pipeline is going away on another error.
+		FS_LOG_DEBUG("map worker error at shutdown: " << e.what());
+	}
+}
+
 bool MappingPipeline::reachedScanLimit() const
 {
 	return cfg_.pipeline.max_scans > 0 &&
@@ -269,6 +283,12 @@ const map::CForestMap& MappingPipeline::forestMap() const
 {
 	if (odometry_) odometry_->flushMap();
 	return map_;
+}
+
+const trees::TreeLayer* MappingPipeline::treeLayer() const
+{
+	if (odometry_) odometry_->flushMap();
+	return tree_layer_.get();
 }
 
 void MappingPipeline::finish()

@@ -164,6 +164,12 @@ class LidarOdometry
 	/** Returns when every processed scan is in the CForestMap (insertion
 	 * runs on a worker thread, MapInserter): call before reading the map. */
 	void flushMap() { inserter_.flush(); }
+	/** Queues work on the CForestMap's thread, after the insertion of every
+	 * scan processed so far (MapInserter::run); flushMap() waits for it. */
+	void runOnMap(std::function<void(map::CForestMap&)> job)
+	{
+		inserter_.run(std::move(job));
+	}
 
 	const ground::GroundLattice& groundLattice() const { return lattice_; }
 	/** The odometry's local map (waits for the last scan's insertion). */

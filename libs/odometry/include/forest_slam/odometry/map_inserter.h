@@ -3,11 +3,13 @@
 // odometry registers the next scan: the map's voxel filters took about a
 // sixth of a scan's time and nothing in the odometry reads the CForestMap
 // (registration uses its own LocalMap). Readers of the map call flush()
-// first.
+// first, or queue their work with run(): it then sees every scan queued
+// before it, and no insertion runs at the same time.
 #include <forest_slam/core/serial_worker.h>
 #include <forest_slam/map/forest_map.h>
 
 #include <Eigen/Geometry>
+#include <functional>
 #include <vector>
 
 namespace forest_slam::odometry
@@ -29,6 +31,10 @@ class MapInserter
 	void push(std::vector<Eigen::Vector3f> edges,
 	          std::vector<Eigen::Vector3f> planar,
 	          const Eigen::Isometry3d& sensor_to_map);
+	/** Queues a job that reads or writes the map on the worker, after the
+	 * scans queued so far (the tree layer's detections: a column's stems
+	 * take hundreds of milliseconds, off the odometry's thread). */
+	void run(std::function<void(map::CForestMap&)> job);
 	/** Returns when every queued scan is in the map; rethrows a worker
 	 * error. */
 	void flush() { worker_.flush(); }

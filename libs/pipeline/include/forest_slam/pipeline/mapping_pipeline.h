@@ -70,6 +70,9 @@ class MappingPipeline
 	/** `poses` is required when the config asks pose_source=trajectory. */
 	MappingPipeline(const MappingConfig& cfg,
 	                std::optional<core::Trajectory> poses = std::nullopt);
+	/** Waits for the jobs still queued on the CForestMap's thread (they use
+	 * the tree layer, which goes before the odometry's worker). */
+	~MappingPipeline();
 
 	/** Dispatches by sensor label; never throws on bad sensor data (it is
 	 * counted and logged once), throws only on programming errors. */
@@ -81,6 +84,8 @@ class MappingPipeline
 	/** The map with every processed scan in it (waits for the odometry's
 	 * map inserter thread). */
 	const map::CForestMap& forestMap() const;
+	/** The counters; tree_ms grows on the CForestMap's thread and is
+	 * complete once forestMap() or finish() returned. */
 	const RunStats& stats() const { return stats_; }
 	const MappingConfig& config() const { return cfg_; }
 	/** Keyframes, dense map and GNSS epochs for the output files. */
@@ -95,8 +100,9 @@ class MappingPipeline
 	 * `enu_origin` at the first fix with the estimated map->ENU transform),
 	 * nullopt without GNSS estimate. Valid after finish(). */
 	std::optional<outputs::GeoOptions> estimatedGeoreference() const;
-	/** nullptr when [trees] layer_enabled = false. */
-	const trees::TreeLayer* treeLayer() const { return tree_layer_.get(); }
+	/** nullptr when [trees] layer_enabled = false. Waits for the layer's
+	 * updates, which run on the CForestMap's thread (odometry). */
+	const trees::TreeLayer* treeLayer() const;
 
 	/** Online mode when the pipeline falls behind the sensors: while on,
 	 * lidar scans get the pose a constant-velocity model extrapolates from
