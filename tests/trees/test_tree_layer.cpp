@@ -233,3 +233,50 @@ TEST(TreeLayer, SegmentShiftsAbsorbAPoseJump)
 		}
 	}
 }
+
+TEST(TreeLayer, ReleasedStemVoxelsKeepTheTreesAndTheirCorrection)
+{
+	const std::vector<Stem> stems = {{4, 5, 0.15}, {9, -6, 0.2}, {14, 4, 0.1}};
+	TreeLayer layer(TreeOptions{}, 20.0);
+	map::CForestMap m;
+	std::mt19937 rng(3);
+	for (double x = -5; x <= 20; x += 1.0)
+	{
+		const Eigen::Vector3d s(x, 0, ground(x, 0) + 1.5);
+		layer.addScan(scan(stems, s, rng), s);
+		layer.update(s, m);
+	}
+	layer.finish(m);
+	const auto trees = m.trees();
+	ASSERT_EQ(trees.size(), stems.size());
+	const size_t voxels = layer.stats().stored_voxels;
+	const size_t bytes = layer.memoryBytes();
+	ASSERT_GT(voxels, 1000u);
+
+	layer.releaseStemVoxels();
+	EXPECT_EQ(layer.stats().stored_voxels, 0u);
+	EXPECT_EQ(layer.stats().released_voxels, voxels);
+	EXPECT_LT(layer.memoryBytes(), bytes / 4);
+	EXPECT_TRUE(layer.stemPoints(layer.columnOf(4, 5)).empty());
+	ASSERT_EQ(m.trees().size(), trees.size());
+
+	// A final loop correction still moves the trees of its column.
+	Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+	T.translation() = Eigen::Vector3d(0.3, 0.1, -0.05);
+	layer.transformColumn(layer.columnOf(4, 5), T, m);
+	ASSERT_EQ(m.trees().size(), trees.size());
+	size_t moved = 0;
+	for (size_t i = 0; i < trees.size(); i++)
+	{
+		const bool in =
+		    layer.columnOf(trees[i].x, trees[i].y) == layer.columnOf(4, 5);
+		moved += in;
+		EXPECT_NEAR(m.trees()[i].x, trees[i].x + (in ? 0.3 : 0), 1e-9);
+		EXPECT_NEAR(m.trees()[i].y, trees[i].y + (in ? 0.1 : 0), 1e-9);
+		EXPECT_NEAR(m.trees()[i].dbh_m, trees[i].dbh_m, 1e-12);
+	}
+	EXPECT_EQ(moved, 2u);  // (4, 5) and (14, 4); (9, -6) is in y < 0
+	// The end of the run: no more scans.
+	const Eigen::Vector3d s(0, 0, 1.5);
+	EXPECT_THROW(layer.addScan(scan(stems, s, rng), s), std::logic_error);
+}

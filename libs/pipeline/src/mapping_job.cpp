@@ -461,7 +461,10 @@ std::vector<std::string> writeOutputs(const MappingPipeline& p,
 		       << (layer ? layer->stats().detections : 0)
 		   << ", \"detect_ms\": " << (layer ? layer->stats().detect_ms : 0)
 		   << ", \"stem_voxels\": "
-		   << (layer ? layer->stats().stored_voxels : 0) << "},\n"
+		   << (layer ? layer->stats().stored_voxels +
+		                   layer->stats().released_voxels
+		             : 0)
+		   << "},\n"
 		   << "  \"output_collect_ms_per_scan\": "
 		   << (col.scans() ? 1e3 * col.collectSeconds() / col.scans() : 0.0)
 		   << ",\n"

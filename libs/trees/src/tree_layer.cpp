@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <stdexcept>
 
 namespace forest_slam::trees
 {
@@ -206,6 +207,9 @@ TreeLayer::Column& TreeLayer::column(const ColumnKey& k)
 void TreeLayer::addScan(const std::vector<Eigen::Vector3f>& pts,
                         const Eigen::Vector3d& sensor, double time_s)
 {
+	if (released_)
+		throw std::logic_error(
+		    "TreeLayer::addScan after releaseStemVoxels (end of the run)");
 	const auto t0 = std::chrono::steady_clock::now();
 	stats_.scans++;
 	if (!std::isfinite(time_s)) time_s = 0.1 * double(stats_.scans - 1);
@@ -439,6 +443,15 @@ void TreeLayer::publish(map::CForestMap& map) const
 	          [](const map::TreeRecord& a, const map::TreeRecord& b)
 	          { return a.id < b.id; });
 	map.setTrees(std::move(kept));
+}
+
+void TreeLayer::releaseStemVoxels()
+{
+	for (auto& [k, c] : cols_) c.stem.release();
+	spill_.reset();  // the scratch file goes with its last reader
+	stats_.released_voxels = stats_.stored_voxels;
+	stats_.stored_voxels = 0;
+	released_ = true;
 }
 
 void TreeLayer::transformColumn(const ColumnKey& k, const Eigen::Isometry3d& T,
