@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <future>
 #include <stdexcept>
 
 namespace forest_slam::outputs
@@ -79,7 +80,19 @@ OctomapSummary writeOctomap(const Keyframes& keyframes,
 	const auto t0 = std::chrono::steady_clock::now();
 	OctomapSummary s;
 	octomap::OcTree tree(resolution_m);
-	for (size_t i = 0; i < keyframes.size(); i++)
+	// Ray casting (the keys a keyframe's rays cross) for keyframe i+1 runs
+	// on a second thread while keyframe i's keys update the tree: each was
+	// about half of the export (56 s for the 460 keyframes of the 7-minute
+	// handheld run). The casting uses a scratch tree of the same resolution
+	// (same keys; an OcTree's ray buffers are its own), and the updates are
+	// insertPointCloud's (discretize, lazy_eval) in its order: the same file.
+	struct Rays
+	{
+		octomap::KeySet free, occupied;
+		size_t points = 0;
+	};
+	octomap::OcTree caster(resolution_m);
+	auto cast = [&](size_t i)
 	{
 		const auto& kf = keyframes[i];
 		const std::vector<Eigen::Vector3f> pts = cloud_of(i);
@@ -92,13 +105,27 @@ OctomapSummary writeOctomap(const Keyframes& keyframes,
 			cloud.push_back(q.x(), q.y(), q.z());
 		}
 		const auto& o = kf.sensor_pose.translation();
+		Rays r;
+		r.points = pts.size();
 		// discretize: one ray per end voxel (several points in one voxel
 		// would cast the same ray).
+		caster.computeDiscreteUpdate(cloud,
+		                             octomap::point3d(o.x(), o.y(), o.z()),
+		                             r.free, r.occupied, max_range_m);
+		return r;
+	};
+	std::future<Rays> next;
+	if (!keyframes.empty()) next = std::async(std::launch::async, cast, 0);
+	for (size_t i = 0; i < keyframes.size(); i++)
+	{
+		const Rays r = next.get();  // rethrows a loader error
+		if (i + 1 < keyframes.size())
+			next = std::async(std::launch::async, cast, i + 1);
 		// lazy_eval: inner nodes are updated once at the end.
-		tree.insertPointCloud(cloud, octomap::point3d(o.x(), o.y(), o.z()),
-		                      max_range_m, true, true);
+		for (const auto& k : r.free) tree.updateNode(k, false, true);
+		for (const auto& k : r.occupied) tree.updateNode(k, true, true);
 		s.keyframes++;
-		s.rays += pts.size();
+		s.rays += r.points;
 	}
 	tree.updateInnerOccupancy();
 	for (auto it = tree.begin_leafs(), end = tree.end_leafs(); it != end; ++it)
