@@ -140,6 +140,15 @@ void MappingPipeline::backEndScan(const PendingScan& s, core::StampedPose& pose)
 				if (map_.segmentCount() > n)
 					map_segment_first_scan_.push_back(trajectory_.size() + 1);
 			}
+			// The tree layer: this scan and the next ones are a new pass
+			// (its job is queued after this one), unless the correction
+			// is below half a stem-band voxel.
+			const double stem_moves_m =
+			    C.translation().norm() + Eigen::AngleAxisd(C.linear()).angle() *
+			                                 cfg_.trees.layer_max_range_m;
+			if (tree_layer_ && stem_moves_m > 0.5 * cfg_.trees.layer_voxel_m)
+				odometry_->runOnMap([this](map::CForestMap&)
+				                    { tree_layer_->startPass(); });
 			for (auto& T : kf_pose_) T = C * T;
 			pose.pose = C * pose.pose;
 			if (last_scan_pose_)
@@ -272,25 +281,8 @@ void MappingPipeline::finishBackEnd()
 		    << " segments, " << map_.edgePointCount() + map_.planarPointCount()
 		    << " voxels once merged) in " << S(t2 - t1).count() << " s");
 	}
-	// Tree layer: each column moves with the correction of the scan that
-	// passed nearest to its centre (as mapped).
-	if (tree_layer_ && !mapped.empty())
-		for (const auto& k : tree_layer_->columns())
-		{
-			const double c = tree_layer_->columnSize();
-			const Eigen::Vector2d centre((k.x + 0.5) * c, (k.y + 0.5) * c);
-			size_t best = 0;
-			double bd = 1e300;
-			for (size_t i = 0; i < mapped.size(); i++)
-			{
-				const double d =
-				    (mapped[i].pose.translation().head<2>() - centre)
-				        .squaredNorm();
-				if (d < bd) bd = d, best = i;
-			}
-			tree_layer_->transformColumn(
-			    k, trajectory_[best].pose * mapped[best].pose.inverse(), map_);
-		}
+	if (tree_layer_ && backend_->stats().optimisations > 0 && !mapped.empty())
+		correctTreeLayer(mapped);
 	const auto st = backend_->stats();
 	FS_LOG_INFO("back-end: " << st.keyframes << " keyframes, " << st.candidates
 	                         << " loop candidates, " << st.closures
@@ -313,6 +305,45 @@ scanCorrections(const core::Trajectory& corrected,
 	return C;
 }
 }  // namespace
+
+void MappingPipeline::correctTreeLayer(const core::Trajectory& mapped)
+{
+	// Stem-band voxels move with the correction of the scan at their mean
+	// time (the passes were kept apart for this); ground cells and trees
+	// with that of the scan that passed nearest to the column's centre.
+	const auto C = scanCorrections(trajectory_, mapped);
+	std::vector<double> t(mapped.size());
+	for (size_t i = 0; i < mapped.size(); i++) t[i] = mapped[i].t_s;
+	const auto at_time = [&](double ts)
+	{
+		const size_t u = std::upper_bound(t.begin(), t.end(), ts) - t.begin();
+		return C[u > 0 ? u - 1 : 0];
+	};
+	const auto of_column = [&](const trees::ColumnKey& k)
+	{
+		const double c = tree_layer_->columnSize();
+		const Eigen::Vector2d centre((k.x + 0.5) * c, (k.y + 0.5) * c);
+		size_t best = 0;
+		double bd = 1e300;
+		for (size_t i = 0; i < mapped.size(); i++)
+		{
+			const double d =
+			    (mapped[i].pose.translation().head<2>() - centre).squaredNorm();
+			if (d < bd) bd = d, best = i;
+		}
+		return Eigen::Isometry3d(trajectory_[best].pose *
+		                         mapped[best].pose.inverse());
+	};
+	const auto t0 = std::chrono::steady_clock::now();
+	const size_t redetect = tree_layer_->correct(at_time, of_column, map_);
+	FS_LOG_INFO("back-end corrections: tree layer ("
+	            << tree_layer_->columns().size() << " columns) moved in "
+	            << std::chrono::duration<double>(
+	                   std::chrono::steady_clock::now() - t0)
+	                   .count()
+	            << " s; " << redetect
+	            << " columns whose passes disagreed are detected again");
+}
 
 void MappingPipeline::correctDenseMap(const core::Trajectory& mapped)
 {

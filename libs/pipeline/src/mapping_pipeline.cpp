@@ -295,8 +295,11 @@ void MappingPipeline::finish()
 {
 	drainPending(true);
 	if (odometry_) odometry_->flushMap();  // the outputs read the CForestMap
+	// The maps and the tree layer's points follow the corrected trajectory
+	// first, then the layer detects the columns not done yet and those
+	// whose passes the correction moved apart.
+	finishBackEnd();
 	finishTreeLayer();
-	finishBackEnd();  // moves the trees with the corrected trajectory
 }
 
 Eigen::Matrix3d MappingPipeline::levelledOrientation(

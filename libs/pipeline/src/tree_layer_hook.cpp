@@ -63,9 +63,8 @@ void MappingPipeline::finishTreeLayer()
 	if (!tree_layer_) return;
 	const auto t0 = std::chrono::steady_clock::now();
 	tree_layer_->finish(map_);
-	// Every column is detected: the stem-band voxels are not read again (the
-	// back-end's final correction moves the trees themselves). Freed here,
-	// before that correction would read every spilled column back.
+	// Every column is detected and the back-end's final correction is done
+	// (finishBackEnd runs first): the stem-band voxels are not read again.
 	tree_layer_->releaseStemVoxels();
 	stats_.tree_finish_ms = msSince(t0);
 }

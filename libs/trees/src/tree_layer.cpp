@@ -56,13 +56,16 @@ Eigen::Vector3f TreeLayer::SortedVoxels::centreOf(uint64_t key) const
 
 void TreeLayer::SortedVoxels::compact(size_t max_pending)
 {
+	// The pass fills what was padding: 48 bytes per voxel either way.
+	static_assert(sizeof(Voxel) == 48, "stem-band voxel grew");
 	if (pending_.size() <= max_pending || pending_.empty()) return;
 	std::vector<Voxel> add;
 	add.reserve(pending_.size());
 	for (const auto& q : pending_)
 	{
 		const uint64_t k = keyOf(q.p);
-		add.push_back({k, q.p - centreOf(k), q.dir, 1, q.segment, q.time});
+		add.push_back(
+		    {k, q.p - centreOf(k), q.dir, 1, q.segment, q.time, q.pass});
 	}
 	pending_.clear();
 	pending_.shrink_to_fit();
@@ -80,10 +83,34 @@ void TreeLayer::SortedVoxels::transform(const Eigen::Isometry3f& T)
 		const Eigen::Vector3f c = T * centroid(v);
 		const uint64_t k = keyOf(c);
 		moved.push_back({k, (c - centreOf(k)) * float(v.count),
-		                 T.linear() * v.dir, v.count, v.segment, v.time});
+		                 T.linear() * v.dir, v.count, v.segment, v.time,
+		                 v.pass});
 	}
 	voxels_.clear();
 	mergeIn(moved);
+}
+
+float TreeLayer::SortedVoxels::transformByTime(
+    const std::function<Eigen::Isometry3f(float)>& at,
+    const Eigen::Isometry3f& T)
+{
+	compact();
+	std::vector<Voxel> moved;
+	moved.reserve(voxels_.size());
+	float worst = 0;
+	for (const auto& v : voxels_)
+	{
+		const Eigen::Isometry3f C = at(v.time);
+		const Eigen::Vector3f c0 = centroid(v), c = C * c0;
+		worst = std::max(worst, (c - T * c0).norm());
+		const uint64_t k = keyOf(c);
+		// Corrected, the passes agree: merged again (pass 0).
+		moved.push_back({k, (c - centreOf(k)) * float(v.count),
+		                 C.linear() * v.dir, v.count, v.segment, v.time, 0});
+	}
+	voxels_.clear();
+	mergeIn(moved);
+	return worst;
 }
 
 void TreeLayer::SortedVoxels::spill(core::SpillFile& f)
@@ -111,14 +138,18 @@ void TreeLayer::SortedVoxels::mergeIn(std::vector<Voxel>& add)
 {
 	changed_ = true;
 	auto less = [](const Voxel& a, const Voxel& b)
-	{ return a.key != b.key ? a.key < b.key : a.segment < b.segment; };
+	{
+		return a.key != b.key     ? a.key < b.key
+		       : a.pass != b.pass ? a.pass < b.pass
+		                          : a.segment < b.segment;
+	};
 	std::sort(add.begin(), add.end(), less);
 	std::vector<Voxel> merged;
 	merged.reserve(voxels_.size() + add.size());
 	auto push = [&](const Voxel& v)
 	{
 		if (!merged.empty() && merged.back().key == v.key &&
-		    merged.back().segment == v.segment)
+		    merged.back().pass == v.pass && merged.back().segment == v.segment)
 		{
 			auto& m = merged.back();
 			m.time =
@@ -269,7 +300,8 @@ void TreeLayer::addScan(const std::vector<Eigen::Vector3f>& pts,
 		const float n = d.norm();
 		resident(*col).add(
 		    pts[i], n > 0 ? Eigen::Vector3f(d / n) : Eigen::Vector3f::Zero(),
-		    tagged && h >= seg_lo && h <= seg_hi ? tag(pts[i]) : 0, t_rel);
+		    tagged && h >= seg_lo && h <= seg_hi ? tag(pts[i]) : 0, t_rel,
+		    pass_);
 	}
 	stats_.stored_voxels = 0;
 	for (auto& [k, c] : cols_)
@@ -445,6 +477,69 @@ void TreeLayer::publish(map::CForestMap& map) const
 	map.setTrees(std::move(kept));
 }
 
+void TreeLayer::startPass()
+{
+	pass_++;
+}
+
+size_t TreeLayer::correct(
+    const std::function<Eigen::Isometry3f(double t_s)>& at_time,
+    const std::function<Eigen::Isometry3d(const ColumnKey&)>& of_column,
+    map::CForestMap& map)
+{
+	if (released_)
+		throw std::logic_error("TreeLayer::correct after releaseStemVoxels");
+	const double t0 = std::isfinite(t0_s_) ? t0_s_ : 0.0;
+	const float rigid_m = float(0.5 * o_.layer_voxel_m);
+	size_t redetect = 0;
+	for (const auto& k : columns())
+	{
+		Column& c = cols_.at(k);
+		const Eigen::Isometry3d T = of_column(k);
+		const Eigen::Isometry3f Tf = T.cast<float>();
+		SortedVoxels& stem = resident(c);
+		stats_.stored_voxels -= stem.size();
+		const float worst = stem.transformByTime(
+		    [&](float t) { return at_time(t0 + double(t)); }, Tf);
+		stats_.stored_voxels += stem.size();
+		moveGroundAndTrees(c, T);
+		// Passes that disagreed (or points off the column's correction by
+		// more than half a voxel): the stems were found on blurred rings.
+		if (worst > rigid_m)
+		{
+			c.dirty = true;
+			redetect++;
+		}
+		// finish() reads back the columns it detects and their neighbours
+		// only: the corrected whole does not stay in memory at once.
+		if (spill_) c.stem.spill(*spill_);
+	}
+	pass_ = 0;
+	publish(map);
+	return redetect;
+}
+
+void TreeLayer::moveGroundAndTrees(Column& c, const Eigen::Isometry3d& T)
+{
+	const Eigen::Isometry3f Tf = T.cast<float>();
+	const float inv_g = float(1.0 / o_.layer_ground_cell_m);
+	decltype(c.lowest) lowest;
+	for (const auto& [key, p] : c.lowest)
+	{
+		const Eigen::Vector3f q = Tf * p;
+		const map::VoxelKey g{int32_t(std::floor(q.x() * inv_g)),
+		                      int32_t(std::floor(q.y() * inv_g)), 0};
+		auto [jt, inserted] = lowest.try_emplace(g, q);
+		if (!inserted && q.z() < jt->second.z()) jt->second = q;
+	}
+	c.lowest.swap(lowest);
+	for (auto& t : c.trees)
+	{
+		const Eigen::Vector3d q = T * Eigen::Vector3d(t.x, t.y, t.z_ground);
+		t.x = q.x(), t.y = q.y(), t.z_ground = q.z();
+	}
+}
+
 void TreeLayer::releaseStemVoxels()
 {
 	for (auto& [k, c] : cols_) c.stem.release();
@@ -460,27 +555,11 @@ void TreeLayer::transformColumn(const ColumnKey& k, const Eigen::Isometry3d& T,
 	const auto it = cols_.find(k);
 	if (it == cols_.end()) return;
 	Column& c = it->second;
-	const Eigen::Isometry3f Tf = T.cast<float>();
-	const float inv_g = float(1.0 / o_.layer_ground_cell_m);
-	decltype(c.lowest) lowest;
-	for (const auto& [key, p] : c.lowest)
-	{
-		const Eigen::Vector3f q = Tf * p;
-		const map::VoxelKey g{int32_t(std::floor(q.x() * inv_g)),
-		                      int32_t(std::floor(q.y() * inv_g)), 0};
-		auto [jt, inserted] = lowest.try_emplace(g, q);
-		if (!inserted && q.z() < jt->second.z()) jt->second = q;
-	}
-	c.lowest.swap(lowest);
 	stats_.stored_voxels -= c.stem.size();
-	resident(c).transform(Tf);
+	resident(c).transform(T.cast<float>());
 	stats_.stored_voxels += c.stem.size();
 	c.dirty = true;  // detected again when due
-	for (auto& t : c.trees)
-	{
-		const Eigen::Vector3d q = T * Eigen::Vector3d(t.x, t.y, t.z_ground);
-		t.x = q.x(), t.y = q.y(), t.z_ground = q.z();
-	}
+	moveGroundAndTrees(c, T);
 	publish(map);
 }
 

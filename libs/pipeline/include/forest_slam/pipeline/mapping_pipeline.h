@@ -179,6 +179,9 @@ class MappingPipeline
 					   const Eigen::Vector3d& sensor);
 	void feedTreeLayerOdometry(const Eigen::Isometry3d& scan_pose);
 	void finishTreeLayer();
+	/** End of the run (back_end_hook.cpp): the tree layer follows the
+	 * final trajectory, its passes each with their own correction. */
+	void correctTreeLayer(const core::Trajectory& mapped);
 	/** Lidar pose in the map frame at absolute time t (--poses files hold
 	 * lidar poses, like our own trajectory.tum, so they can be fed back). */
 	bool lidarPoseAt(double t_s, Eigen::Isometry3d& out) const;

@@ -21,6 +21,7 @@
 #include <Eigen/Geometry>
 
 #include <cstdint>
+#include <functional>
 #include <limits>
 #include <memory>
 #include <type_traits>
@@ -75,6 +76,26 @@ class TreeLayer
 	/** End of the run: detects every column with new points. */
 	size_t finish(map::CForestMap& map);
 
+	/** A loop correction moved the map frame during the run: the points
+	 * added from now on are a new pass, never merged into the voxels of
+	 * earlier passes, so that correct() can move each with its own
+	 * correction. (Merged, the passes of a stem a few cm apart made two
+	 * rings: the robot run's layer missed 17 % of the stems the same layer
+	 * finds with GT poses.) */
+	void startPass();
+	/** End of a run with loop closure, before finish(): the final
+	 * trajectory moves every stem-band voxel with `at_time(t)`, the
+	 * correction of the scan taken at the voxel's mean time t (absolute
+	 * [s]), and each column's ground cells and trees with
+	 * `of_column(key)`. A column whose voxels all move within
+	 * layer_voxel_m / 2 of its own correction moves rigidly and keeps its
+	 * trees; the others are detected again at finish(). Returns the number
+	 * of those. */
+	size_t correct(
+	    const std::function<Eigen::Isometry3f(double t_s)>& at_time,
+	    const std::function<Eigen::Isometry3d(const ColumnKey&)>& of_column,
+	    map::CForestMap& map);
+
 	/** End of a run, after finish(): frees the stem-band voxels (in memory
 	 * and spilled; 1.2 GB at the end of the 7-minute handheld run, whose
 	 * final loop correction had read every spilled column back). The trees
@@ -113,9 +134,9 @@ class TreeLayer
 		/** `segment`: the time segment of the point's scan, or 0 (merged
 		 * with every segment's voxel of the cell). */
 		void add(const Eigen::Vector3f& p, const Eigen::Vector3f& dir,
-		         uint32_t segment = 0, float time = 0)
+		         uint32_t segment = 0, float time = 0, uint32_t pass = 0)
 		{
-			pending_.push_back({p, dir, segment, time});
+			pending_.push_back({p, dir, segment, time, pass});
 		}
 		/** Merges the buffer if it holds more than `max_pending` points. */
 		void compact(size_t max_pending = 0);
@@ -154,6 +175,12 @@ class TreeLayer
 			}
 		}
 		void transform(const Eigen::Isometry3f& T);
+		/** Moves each voxel with `at(mean time)` and merges the passes;
+		 * returns the largest distance between where a voxel went and
+		 * where `T` would have put it. */
+		float transformByTime(
+		    const std::function<Eigen::Isometry3f(float)>& at,
+		    const Eigen::Isometry3f& T);
 		/** Drops every voxel (and forgets a spilled set). */
 		void release()
 		{
@@ -186,15 +213,17 @@ class TreeLayer
 			Eigen::Vector3f sum;  ///< of offsets from the voxel centre
 			Eigen::Vector3f dir;  ///< sum of unit viewing directions
 			uint32_t count;
-			uint32_t
-			    segment;  ///< time segment (0: none); sorted by (key, segment)
-			float time;   ///< mean time of the points [s since the first scan]
+			uint32_t segment;  ///< time segment (0: none)
+			float time;  ///< mean time of the points [s since the first scan]
+			uint32_t pass;  ///< TreeLayer::startPass count; sorted by (key,
+			                ///< pass, segment)
 		};
 		struct Pending
 		{
 			Eigen::Vector3f p, dir;
 			uint32_t segment;
 			float time;
+			uint32_t pass;
 		};
 		double voxel_m_;
 		std::vector<Voxel> voxels_;  ///< sorted by key
@@ -233,10 +262,13 @@ class TreeLayer
 	std::unordered_map<ColumnKey, Column, ColumnKeyHash> cols_;
 	uint32_t next_id_ = 1;
 	bool released_ = false;  ///< releaseStemVoxels() was called
+	uint32_t pass_ = 0;      ///< startPass() count
 	double t0_s_ = std::numeric_limits<double>::quiet_NaN();  ///< first scan
 	TreeLayerStats stats_;
 
 	Column& column(const ColumnKey& k);
+	/** Moves a column's ground cells and trees by T (not its voxels). */
+	void moveGroundAndTrees(Column& c, const Eigen::Isometry3d& T);
 	void detectColumn(const ColumnKey& k, const map::CForestMap& map);
 	void publish(map::CForestMap& map) const;
 };
