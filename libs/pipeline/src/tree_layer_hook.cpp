@@ -4,6 +4,8 @@
 // layer (doc/trees.md "Tree layer of a SLAM run").
 #include <forest_slam/pipeline/mapping_pipeline.h>
 
+#include <malloc.h>
+
 #include <chrono>
 
 namespace forest_slam::pipeline
@@ -66,6 +68,7 @@ void MappingPipeline::finishTreeLayer()
 	// Every column is detected and the back-end's final correction is done
 	// (finishBackEnd runs first): the stem-band voxels are not read again.
 	tree_layer_->releaseStemVoxels();
+	malloc_trim(0);  // glibc keeps the freed heap of the map thread otherwise
 	stats_.tree_finish_ms = msSince(t0);
 }
 
