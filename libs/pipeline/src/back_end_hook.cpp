@@ -304,6 +304,20 @@ scanCorrections(const core::Trajectory& corrected,
 		C[i] = (corrected[i].pose * mapped[i].pose.inverse()).cast<float>();
 	return C;
 }
+
+std::vector<double> scanTimes(const core::Trajectory& mapped)
+{
+	std::vector<double> t(mapped.size());
+	for (size_t i = 0; i < mapped.size(); i++) t[i] = mapped[i].t_s;
+	return t;
+}
+
+/** The last scan starting at or before ts (the first if none). */
+size_t scanAt(const std::vector<double>& t, double ts)
+{
+	const size_t u = std::upper_bound(t.begin(), t.end(), ts) - t.begin();
+	return u > 0 ? u - 1 : 0;
+}
 }  // namespace
 
 void MappingPipeline::correctTreeLayer(const core::Trajectory& mapped)
@@ -312,13 +326,8 @@ void MappingPipeline::correctTreeLayer(const core::Trajectory& mapped)
 	// time (the passes were kept apart for this); ground cells and trees
 	// with that of the scan that passed nearest to the column's centre.
 	const auto C = scanCorrections(trajectory_, mapped);
-	std::vector<double> t(mapped.size());
-	for (size_t i = 0; i < mapped.size(); i++) t[i] = mapped[i].t_s;
-	const auto at_time = [&](double ts)
-	{
-		const size_t u = std::upper_bound(t.begin(), t.end(), ts) - t.begin();
-		return C[u > 0 ? u - 1 : 0];
-	};
+	const auto t = scanTimes(mapped);
+	const auto at_time = [&](double ts) { return C[scanAt(t, ts)]; };
 	const auto of_column = [&](const trees::ColumnKey& k)
 	{
 		const double c = tree_layer_->columnSize();
@@ -351,8 +360,7 @@ void MappingPipeline::correctDenseMap(const core::Trajectory& mapped)
 	// point's time (the last scan starting at or before it): exact, and
 	// nothing was spent on it while mapping.
 	const auto C = scanCorrections(trajectory_, mapped);
-	std::vector<double> t(mapped.size());
-	for (size_t i = 0; i < mapped.size(); i++) t[i] = mapped[i].t_s;
+	const auto t = scanTimes(mapped);
 	const double t0 = outputs_.dense().timeOrigin();
 	size_t k = 0;
 	outputs_.transformDense(
@@ -360,11 +368,7 @@ void MappingPipeline::correctDenseMap(const core::Trajectory& mapped)
 	    {
 		    const double tp = t0 + p.t_s;
 		    if (!(t[k] <= tp && (k + 1 == t.size() || tp < t[k + 1])))
-		    {
-			    const size_t u =
-			        std::upper_bound(t.begin(), t.end(), tp) - t.begin();
-			    k = u > 0 ? u - 1 : 0;
-		    }
+			    k = scanAt(t, tp);
 		    p.xyz = C[k] * p.xyz;
 	    });
 }
