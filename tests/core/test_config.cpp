@@ -40,7 +40,7 @@ std::string errorOf(const std::function<void()>& f)
 TEST(Config, LoadsValuesAndKeepsDefaults)
 {
 	auto cfg = TrackedConfig::fromText(
-		"[m]\nvoxel_m = 0.5\nflag = true\nv = 1, 2.5, 3\n", "test.ini");
+	    "[m]\nvoxel_m = 0.5\nflag = true\nv = 1, 2.5, 3\n", "test.ini");
 	Opts o;
 	o.load(cfg, "m");
 	EXPECT_DOUBLE_EQ(o.voxel_m, 0.5);
@@ -54,7 +54,8 @@ TEST(Config, LoadsValuesAndKeepsDefaults)
 
 TEST(Config, UnknownKeyNamesFileSectionAndKey)
 {
-	auto cfg = TrackedConfig::fromText("[m]\nvoxel_m = 0.5\nvoxle_m = 1\n", "my.ini");
+	auto cfg =
+	    TrackedConfig::fromText("[m]\nvoxel_m = 0.5\nvoxle_m = 1\n", "my.ini");
 	Opts o;
 	o.load(cfg, "m");
 	const auto msg = errorOf([&] { cfg.checkNoUnknownKeys(); });
@@ -65,7 +66,8 @@ TEST(Config, UnknownKeyNamesFileSectionAndKey)
 
 TEST(Config, UnknownSectionIsAnError)
 {
-	auto cfg = TrackedConfig::fromText("[m]\nvoxel_m = 0.5\n[mapp]\nx = 1\n", "my.ini");
+	auto cfg = TrackedConfig::fromText("[m]\nvoxel_m = 0.5\n[mapp]\nx = 1\n",
+	                                   "my.ini");
 	Opts o;
 	o.load(cfg, "m");
 	const auto msg = errorOf([&] { cfg.checkNoUnknownKeys(); });
@@ -77,13 +79,14 @@ TEST(Config, UnknownSectionIsAnError)
 TEST(Config, BadValuesAreErrorsWithContext)
 {
 	for (const char* text :
-		 {"[m]\nvoxel_m = abc\n", "[m]\ncount = 2.5\n", "[m]\nflag = maybe\n",
-		  "[m]\nvoxel_m = nan\n", "[m]\nv = 1, x\n"})
+	     {"[m]\nvoxel_m = abc\n", "[m]\ncount = 2.5\n", "[m]\nflag = maybe\n",
+	      "[m]\nvoxel_m = nan\n", "[m]\nv = 1, x\n"})
 	{
 		auto cfg = TrackedConfig::fromText(text, "bad.ini");
 		Opts o;
 		const auto msg = errorOf([&] { o.load(cfg, "m"); });
-		EXPECT_NE(msg.find("bad.ini: [m]"), std::string::npos) << text << " -> " << msg;
+		EXPECT_NE(msg.find("bad.ini: [m]"), std::string::npos)
+		    << text << " -> " << msg;
 		EXPECT_NE(msg.find("expected"), std::string::npos) << msg;
 	}
 }
@@ -99,6 +102,25 @@ TEST(Config, SectionAndKeyMatchingIsCaseInsensitive)
 
 TEST(Config, MissingFileIsAnError)
 {
-	const auto msg = errorOf([] { TrackedConfig::fromFile("/nonexistent/x.ini"); });
+	const auto msg =
+	    errorOf([] { TrackedConfig::fromFile("/nonexistent/x.ini"); });
 	EXPECT_NE(msg.find("/nonexistent/x.ini"), std::string::npos);
+}
+
+TEST(Config, PreprocessorErrorsNameTheConfig)
+{
+	// MRPT's INI preprocessor throws std::runtime_error naming a line only
+	// (a fuzz_ini finding); it reaches the user as a ConfigError naming the
+	// file.
+	try
+	{
+		TrackedConfig::fromText("[pipeline]\nmax_scans = $env{false\n",
+		                        "rig.ini");
+		FAIL() << "no error";
+	}
+	catch (const ConfigError& e)
+	{
+		EXPECT_NE(std::string(e.what()).find("rig.ini"), std::string::npos)
+		    << e.what();
+	}
 }

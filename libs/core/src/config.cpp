@@ -66,20 +66,23 @@ TrackedConfig TrackedConfig::fromFile(const std::string& path)
 	text << f.rdbuf();
 	if (f.bad())
 		throw ConfigError("cannot read config file '" + path + "'");
-	try
-	{
-		return TrackedConfig(text.str(), path);
-	}
-	catch (const std::exception& e)
-	{
-		throw ConfigError("cannot parse config file '" + path + "': " + e.what());
-	}
+	return fromText(text.str(), path);
 }
 
 TrackedConfig TrackedConfig::fromText(
 	const std::string& text, const std::string& origin)
 {
-	return TrackedConfig(text, origin);
+	// MRPT's INI preprocessor ($env{}, $eval{}, @include) throws plain
+	// std::runtime_error naming only a line (found by fuzz_ini).
+	try
+	{
+		return TrackedConfig(text, origin);
+	}
+	catch (const std::exception& e)
+	{
+		throw ConfigError(
+			"cannot parse config file '" + origin + "': " + e.what());
+	}
 }
 
 void TrackedConfig::getAllSections(std::vector<std::string>& sections) const
