@@ -67,6 +67,72 @@ TEST(DenseMapSpill, TilesOnDiskKeepTheSamePointsAsOneTableInMemory)
 	EXPECT_EQ(seen, tiled.size());
 }
 
+TEST(DenseMapSpill, RevisitedTilesKeepTheirPointsInOrderAndOnDisk)
+{
+	// Out and back twice over the same 60 m: every tile is spilled and
+	// revisited. Against the same tiles never spilled: the same points in
+	// the same order (chunk after chunk), the same after a move, and a
+	// revisited tile holds only its voxel table and its new points.
+	outputs::DenseMap kept(0.05, 5.0), tiled(0.05, 5.0);
+	auto spill = std::make_shared<core::SpillFile>();
+	std::mt19937 rng(11);
+	std::uniform_real_distribution<float> u(-8, 8);
+	uint16_t n = 0;
+	size_t revisit_memory = 0, first_memory = 0, after_first_lap = 0;
+	// Points on a 10 cm lattice of a ground plane: the first lap sees most
+	// of the voxels, the second one few new ones (as on a real revisit).
+	const auto q = [](float v) { return std::round(v * 10) / 10 + 0.01f; };
+	auto scan = [&](float sx)
+	{
+		for (int k = 0; k < 3000; k++)
+		{
+			outputs::DensePoint p;
+			p.xyz = {q(sx + u(rng)), q(u(rng)), 0.01f};
+			p.t_s = sx;
+			p.intensity = n++;
+			EXPECT_EQ(kept.add(p), tiled.add(p));
+		}
+		tiled.spillFar(Eigen::Vector2d(sx, 0), 10.0, spill);
+	};
+	for (int lap = 0; lap < 2; lap++)
+	{
+		for (float x = 0; x <= 60; x += 1) scan(x);
+		if (lap == 0) first_memory = tiled.memoryBytes();
+		for (float x = 60; x >= 0; x -= 1) scan(x);
+		if (lap == 0) after_first_lap = tiled.size();
+		if (lap == 1) revisit_memory = tiled.memoryBytes();
+	}
+	ASSERT_EQ(kept.size(), tiled.size());
+	EXPECT_GT(tiled.spilledBytes(), 0u);
+	// Near the sensor: tables and a lap's new points, far below the points
+	// themselves (20 bytes each, plus their table) when everything stays.
+	// The revisited tiles near the end (x = 0) hold the points of the
+	// second lap only; the first lap's stay on disk.
+	size_t near = 0;
+	for (const auto& p : kept.points()) near += p.xyz.x() < 15 ? 1 : 0;
+	EXPECT_GT(tiled.pointsInMemory(), 0u);
+	EXPECT_LE(tiled.pointsInMemory(), kept.size() - after_first_lap);
+	EXPECT_LT(tiled.pointsInMemory(), near / 4);
+	EXPECT_LT(revisit_memory, near * (sizeof(outputs::DensePoint) + 24));
+	EXPECT_GT(first_memory, 0u);
+	auto same = [&]()
+	{
+		const auto a = kept.points(), b = tiled.points();
+		ASSERT_EQ(a.size(), b.size());
+		for (size_t i = 0; i < a.size(); i++)
+		{
+			ASSERT_EQ(a[i].xyz, b[i].xyz) << i;
+			ASSERT_EQ(a[i].intensity, b[i].intensity) << i;
+		}
+	};
+	same();
+	const auto move = [](outputs::DensePoint& p)
+	{ p.xyz += Eigen::Vector3f(0.3f, -0.1f, 0.02f * p.t_s); };
+	kept.transformPoints(move);
+	tiled.transformPoints(move);
+	same();
+}
+
 TEST(DenseMapSpill, VoxelsOnTileBordersAreNotDuplicated)
 {
 	// Points straddling the tile edge x = 5 m (and negative tiles): one per

@@ -7,8 +7,11 @@
 // Memory is bounded by the area near the sensor, not by the area mapped:
 // the grid is split into square tiles (columns of tile_m × tile_m); tiles
 // farther from the sensor than any return can reach are moved to a spill
-// file (spillFar) and read back when a point falls into them again, so the
-// kept points are the same as with everything in memory.
+// file (spillFar). When a point falls into a spilled tile again, only its
+// voxel table is rebuilt (8 bytes a slot): its points stay on disk and the
+// new ones are kept in memory until the tile is spilled again, as one more
+// chunk after the others. The kept points, and their order, are the same
+// as with everything in memory.
 #include <forest_slam/core/spill_file.h>
 
 #include <Eigen/Core>
@@ -72,13 +75,14 @@ class DenseMap
 		std::vector<DensePoint> buf;
 		for (const auto& t : tiles_)
 		{
-			if (t->spilled)
+			if (t->chunks.empty())
 			{
-				spill_->readVector(t->spill_offset, t->spill_count, buf);
-				f(static_cast<const std::vector<DensePoint>&>(buf));
+				if (!t->points.empty())
+					f(static_cast<const std::vector<DensePoint>&>(t->points));
+				continue;
 			}
-			else if (!t->points.empty())
-				f(static_cast<const std::vector<DensePoint>&>(t->points));
+			tilePoints(*t, buf);
+			f(static_cast<const std::vector<DensePoint>&>(buf));
 		}
 	}
 	/** Every point in one vector (forEachTile order): tests, small maps. */
@@ -94,23 +98,30 @@ class DenseMap
 	/** Bytes of the points in spilled tiles. */
 	size_t spilledBytes() const;
 	size_t tiles() const { return tiles_.size(); }
+	/** Points held in memory (the others are in the spill file). */
+	size_t pointsInMemory() const;
 	size_t tilesSpilled() const;
 
    private:
+	/** Points of a tile written to the spill file (in keeping order). */
+	struct Chunk
+	{
+		uint64_t offset = 0;
+		size_t count = 0;
+	};
 	struct Tile
 	{
 		int64_t tx = 0, ty = 0;  ///< tile index (voxel index / tile_vox_)
-		std::vector<DensePoint> points;
+		std::vector<Chunk> chunks;  ///< on disk: the tile's first points
+		std::vector<DensePoint> points;  ///< in memory: the points after
+		size_t count = 0;                ///< chunks + points
 		// Open addressing (linear probing) on packed voxel keys: no
 		// allocation per voxel; lookups miss the CPU cache, so callers
-		// prefetch() a batch of points ahead of claiming them.
-		std::vector<uint64_t> keys;   ///< kEmpty or packed voxel key
-		std::vector<uint32_t> index;  ///< into points, per slot
+		// prefetch() a batch of points ahead of claiming them. A slot only
+		// says "voxel taken": a taken voxel's point is never looked up.
+		std::vector<uint64_t> keys;  ///< kEmpty or packed voxel key
 		size_t mask = 0;
-		bool spilled = false;
-		bool changed = true;  ///< since it was last written to the spill
-		uint64_t spill_offset = 0;
-		size_t spill_count = 0;
+		bool spilled = false;  ///< no voxel table: every point on disk
 	};
 	double voxel_m_, inv_voxel_;
 	int64_t tile_vox_;  ///< voxels per tile edge; 0: one tile
@@ -129,7 +140,10 @@ class DenseMap
 	Tile* findTile(uint64_t voxel_key) const;
 	Tile& tileFor(uint64_t voxel_key);
 	static void grow(Tile& t);
+	/** Rebuilds the voxel table of a spilled tile from its chunks. */
 	void reload(Tile& t);
+	/** Every point of a tile, chunks then memory, into `out`. */
+	void tilePoints(const Tile& t, std::vector<DensePoint>& out) const;
 
 	DensePoint* claimIn(Tile& t, uint64_t key, const Eigen::Vector3f& xyz);
 };
