@@ -163,15 +163,20 @@ TEST(TreeLayer, SpilledColumnsReloadIdentically)
 	spill.transformColumn(spill.columnOf(85, -5), T, m_spill);
 	mem.finish(m_mem);
 	spill.finish(m_spill);
+	// finish() spills each column once detected.
+	EXPECT_LT(spill.memoryBytes(), mem.memoryBytes() / 2);
 	ASSERT_EQ(m_mem.trees().size(), m_spill.trees().size());
 	ASSERT_GE(m_mem.trees().size(), stems.size() - 1);
 	for (size_t i = 0; i < m_mem.trees().size(); i++)
 	{
 		const auto &a = m_mem.trees()[i], &b = m_spill.trees()[i];
+		// Points added to a spilled column are voxelized apart and summed
+		// into the spilled voxels later: the same voxels and counts, the
+		// float sums in another order (differences of ~1e-7 m).
 		EXPECT_EQ(a.id, b.id);
-		EXPECT_EQ(a.x, b.x);
-		EXPECT_EQ(a.y, b.y);
-		EXPECT_EQ(a.dbh_m, b.dbh_m);
+		EXPECT_NEAR(a.x, b.x, 1e-5);
+		EXPECT_NEAR(a.y, b.y, 1e-5);
+		EXPECT_NEAR(a.dbh_m, b.dbh_m, 1e-5);
 		EXPECT_EQ(a.n_points, b.n_points);
 	}
 	ASSERT_EQ(mem.columns().size(), spill.columns().size());
@@ -179,7 +184,8 @@ TEST(TreeLayer, SpilledColumnsReloadIdentically)
 	{
 		const auto a = mem.stemPoints(k), b = spill.stemPoints(k);
 		ASSERT_EQ(a.size(), b.size());
-		for (size_t i = 0; i < a.size(); i++) EXPECT_EQ(a[i], b[i]);
+		for (size_t i = 0; i < a.size(); i++)
+			EXPECT_LT((a[i] - b[i]).norm(), 1e-5f) << i;
 	}
 	EXPECT_EQ(mem.stats().stored_voxels, spill.stats().stored_voxels);
 }
@@ -237,7 +243,9 @@ TEST(TreeLayer, SegmentShiftsAbsorbAPoseJump)
 TEST(TreeLayer, ReleasedStemVoxelsKeepTheTreesAndTheirCorrection)
 {
 	const std::vector<Stem> stems = {{4, 5, 0.15}, {9, -6, 0.2}, {14, 4, 0.1}};
-	TreeLayer layer(TreeOptions{}, 20.0);
+	TreeOptions o;
+	o.layer_spill_to_disk = false;  // the voxels in memory until released
+	TreeLayer layer(o, 20.0);
 	map::CForestMap m;
 	std::mt19937 rng(3);
 	for (double x = -5; x <= 20; x += 1.0)

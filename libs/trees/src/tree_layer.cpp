@@ -116,6 +116,11 @@ float TreeLayer::SortedVoxels::transformByTime(
 void TreeLayer::SortedVoxels::spill(core::SpillFile& f)
 {
 	compact();
+	if (spilled_)
+	{
+		if (voxels_.empty()) return;
+		reload(f);  // new voxels: the set is written again, merged
+	}
 	if (changed_)
 	{
 		spill_offset_ = f.appendVector(voxels_);
@@ -129,9 +134,29 @@ void TreeLayer::SortedVoxels::spill(core::SpillFile& f)
 void TreeLayer::SortedVoxels::reload(const core::SpillFile& f)
 {
 	if (!spilled_) return;
+	compact();
+	std::vector<Voxel> added;
+	added.swap(voxels_);
 	f.readVector(spill_offset_, spill_count_, voxels_);
 	spilled_ = false;
 	changed_ = false;
+	if (!added.empty()) mergeIn(added);  // sets changed_
+}
+
+TreeLayer::SortedVoxels TreeLayer::SortedVoxels::loaded(
+    const core::SpillFile* f)
+{
+	compact();
+	SortedVoxels copy(voxel_m_);
+	if (!spilled_)
+	{
+		copy.voxels_ = voxels_;
+		return copy;
+	}
+	f->readVector(spill_offset_, spill_count_, copy.voxels_);
+	std::vector<Voxel> added = voxels_;
+	if (!added.empty()) copy.mergeIn(added);
+	return copy;
 }
 
 void TreeLayer::SortedVoxels::mergeIn(std::vector<Voxel>& add)
@@ -185,16 +210,27 @@ TreeLayer::SortedVoxels& TreeLayer::resident(Column& c)
 	return c.stem;
 }
 
+const TreeLayer::SortedVoxels& TreeLayer::readable(Column& c,
+                                                   SortedVoxels& copy)
+{
+	if (!c.stem.spilled())
+	{
+		c.stem.compact();
+		return c.stem;
+	}
+	copy = c.stem.loaded(spill_.get());
+	return copy;
+}
+
 void TreeLayer::spillFar(const Eigen::Vector3d& sensor)
 {
 	if (!spill_) return;
-	// Beyond the reach of new points and of the detections of dirty
-	// neighbours (which read a margin of this column) as they fall due.
-	const double far =
-	    std::max(o_.layer_max_range_m, o_.layer_complete_distance_m) +
-	    column_m_;
+	// Beyond the reach of new points (which would not read it back, but
+	// the column would be written again at its next detection anyway).
+	// Neighbours' detections read a spilled column without keeping it.
+	const double far = o_.layer_max_range_m;
 	for (auto& [k, c] : cols_)
-		if (!c.dirty && !c.stem.spilled() && c.stem.size() > 0 &&
+		if (!c.dirty && c.stem.sizeInMemory() > 0 &&
 		    distanceToSquare(sensor.x(), sensor.y(), k.x * column_m_,
 		                     k.y * column_m_, column_m_) > far)
 			c.stem.spill(*spill_);
@@ -298,7 +334,7 @@ void TreeLayer::addScan(const std::vector<Eigen::Vector3f>& pts,
 		col->dirty = true;
 		const Eigen::Vector3f d = pts[i] - sensor.cast<float>();
 		const float n = d.norm();
-		resident(*col).add(
+		col->stem.add(
 		    pts[i], n > 0 ? Eigen::Vector3f(d / n) : Eigen::Vector3f::Zero(),
 		    tagged && h >= seg_lo && h <= seg_hi ? tag(pts[i]) : 0, t_rel,
 		    pass_);
@@ -335,7 +371,12 @@ size_t TreeLayer::finish(map::CForestMap& map)
 	std::sort(due.begin(), due.end(),
 	          [](const ColumnKey& a, const ColumnKey& b)
 	          { return a.x != b.x ? a.x < b.x : a.y < b.y; });
-	for (const auto& k : due) detectColumn(k, map);
+	for (const auto& k : due)
+	{
+		detectColumn(k, map);
+		// The end of the run holds no more than the columns being read.
+		if (spill_) cols_.at(k).stem.spill(*spill_);
+	}
 	publish(map);
 	return due.size();
 }
@@ -368,8 +409,8 @@ void TreeLayer::detectColumn(const ColumnKey& k, const map::CForestMap& map)
 			for (const auto& [key, p] : it->second.lowest)
 				if (inside(p.x(), p.y(), ground_margin))
 					ground.push_back(p.cast<double>());
-			auto& stem = resident(it->second);
-			stem.compact();
+			SortedVoxels copy;
+			const auto& stem = readable(it->second, copy);
 			stem.forEach(
 			    [&](const Eigen::Vector3f& c, const Eigen::Vector3f& d, float t)
 			    {

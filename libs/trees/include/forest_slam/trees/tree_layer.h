@@ -138,7 +138,8 @@ class TreeLayer
 		{
 			pending_.push_back({p, dir, segment, time, pass});
 		}
-		/** Merges the buffer if it holds more than `max_pending` points. */
+		/** Merges the buffer if it holds more than `max_pending` points
+		 * (into the voxels in memory: a spilled set's new voxels). */
 		void compact(size_t max_pending = 0);
 		size_t size() const
 		{
@@ -191,10 +192,16 @@ class TreeLayer
 			spill_count_ = 0;
 		}
 		/** Moves the voxels to `f` (compact() first); a set read back and
-		 * not changed since is not written again. */
+		 * not changed since is not written again. Points added to a
+		 * spilled set do not read it back: they are voxelized apart in
+		 * memory and merged with the spilled ones on reload() or on the
+		 * next spill(). */
 		void spill(core::SpillFile& f);
-		/** Reads spilled voxels back. */
+		/** Reads spilled voxels back (merging those added since). */
 		void reload(const core::SpillFile& f);
+		/** A copy of the whole set, in memory, for reading; the set stays
+		 * as it is (spilled or not). */
+		SortedVoxels loaded(const core::SpillFile* f);
 		bool spilled() const { return spilled_; }
 		size_t spilledBytes() const
 		{
@@ -204,6 +211,11 @@ class TreeLayer
 		{
 			return voxels_.capacity() * sizeof(Voxel) +
 			       pending_.capacity() * sizeof(Pending);
+		}
+		/** Voxels (or points) held in memory. */
+		size_t sizeInMemory() const
+		{
+			return voxels_.size() + pending_.size();
 		}
 
 	   private:
@@ -226,7 +238,9 @@ class TreeLayer
 			uint32_t pass;
 		};
 		double voxel_m_;
-		std::vector<Voxel> voxels_;  ///< sorted by key
+		/** Sorted by key, pass, segment: every voxel, or while spilled
+		 * those added since (the same key may be on disk too). */
+		std::vector<Voxel> voxels_;
 		std::vector<Pending> pending_;
 		bool spilled_ = false;
 		bool changed_ = true;  ///< since last written to the spill file
@@ -259,6 +273,9 @@ class TreeLayer
 	SortedVoxels& resident(Column& c);
 	/** Spills detected columns no scan from `sensor` can reach. */
 	void spillFar(const Eigen::Vector3d& sensor);
+	/** Stem voxels of a column for reading: the column's own if in
+	 * memory, else a copy read from disk into `copy` (not kept). */
+	const SortedVoxels& readable(Column& c, SortedVoxels& copy);
 	std::unordered_map<ColumnKey, Column, ColumnKeyHash> cols_;
 	uint32_t next_id_ = 1;
 	bool released_ = false;  ///< releaseStemVoxels() was called
