@@ -60,9 +60,11 @@ LoopOptions options()
 }
 
 Poses run(const Walk& w, const std::vector<Stem>& stems, const LoopOptions& o,
-          bool threaded, std::vector<Closure>* closures = nullptr)
+          bool threaded, std::vector<Closure>* closures = nullptr,
+          std::shared_ptr<forest_slam::core::SpillFile> spill = nullptr,
+          size_t* cloud_bytes = nullptr)
 {
-	BackEnd b(o, threaded);
+	BackEnd b(o, threaded, spill);
 	for (size_t i = 0; i < w.odom.size(); i++)
 	{
 		Keyframe kf;
@@ -76,6 +78,7 @@ Poses run(const Walk& w, const std::vector<Stem>& stems, const LoopOptions& o,
 	}
 	b.finish();
 	if (closures) *closures = b.closures();
+	if (cloud_bytes) *cloud_bytes = b.cloudBytes();
 	return b.poses();
 }
 }  // namespace
@@ -114,6 +117,36 @@ TEST(BackEnd, ClosesADriftingLoopDeterministically)
 	ASSERT_EQ(Y.size(), X.size());
 	for (size_t i = 0; i < X.size(); i++)
 		EXPECT_TRUE(X[i].isApprox(Y[i], 1e-12)) << "keyframe " << i;
+}
+
+TEST(BackEnd, SpilledKeyframeCloudsGiveTheSameClosures)
+{
+	// Old keyframe clouds on disk, read back for the candidates: the same
+	// closures and poses as with every cloud in memory, and only the
+	// newest few clouds (and those read back) left in memory.
+	const auto stems = makeStems(5, 40);
+	const Walk w = circle(6, 0.2);
+	std::vector<Closure> in_memory, spilled;
+	size_t bytes_memory = 0, bytes_spilled = 0;
+	const Poses X =
+	    run(w, stems, options(), true, &in_memory, nullptr, &bytes_memory);
+	auto spill = std::make_shared<forest_slam::core::SpillFile>();
+	const Poses Y =
+	    run(w, stems, options(), true, &spilled, spill, &bytes_spilled);
+	ASSERT_EQ(X.size(), Y.size());
+	for (size_t i = 0; i < X.size(); i++)
+		EXPECT_TRUE(X[i].isApprox(Y[i], 1e-12)) << "keyframe " << i;
+	ASSERT_EQ(in_memory.size(), spilled.size());
+	size_t accepted = 0;
+	for (size_t i = 0; i < spilled.size(); i++)
+	{
+		EXPECT_EQ(in_memory[i].accepted, spilled[i].accepted) << i;
+		EXPECT_EQ(in_memory[i].overlap, spilled[i].overlap) << i;
+		accepted += spilled[i].accepted;
+	}
+	EXPECT_GE(accepted, 1u);
+	EXPECT_GT(spill->size(), 0u);
+	EXPECT_LT(bytes_spilled, bytes_memory / 2);
 }
 
 TEST(BackEnd, RefusesTheNeighbouringRowOfAPlantation)

@@ -324,8 +324,9 @@ std::vector<map::TreeRecord> twoPasses(const std::vector<Stem>& stems,
 		Eigen::Isometry3f back = Eigen::Isometry3f::Identity();
 		back.translation() = -d.cast<float>();
 		const size_t n = layer.correct(
-		    [&](double ts)
-		    { return ts < t_correction ? back : Eigen::Isometry3f::Identity(); },
+		    [&](double ts) {
+			    return ts < t_correction ? back : Eigen::Isometry3f::Identity();
+		    },
 		    [](const ColumnKey&) { return Eigen::Isometry3d::Identity(); }, m);
 		if (redetected) *redetected = n;
 	}
@@ -352,8 +353,11 @@ double worstDbhError(const std::vector<Stem>& stems,
 
 TEST(TreeLayer, PassesMovedByTheirOwnCorrectionGiveOneStem)
 {
-	const std::vector<Stem> stems = {
-	    {4, 5, 0.15}, {9, -6, 0.2}, {14, 4, 0.1}, {27, 6, 0.25}, {33, -5, 0.12}};
+	const std::vector<Stem> stems = {{4, 5, 0.15},
+	                                 {9, -6, 0.2},
+	                                 {14, 4, 0.1},
+	                                 {27, 6, 0.25},
+	                                 {33, -5, 0.12}};
 	const Eigen::Vector3d d(0.12, -0.08, 0.02);
 	size_t redetected = 0;
 	const auto fixed = twoPasses(stems, d, true, true, &redetected);
@@ -364,4 +368,70 @@ TEST(TreeLayer, PassesMovedByTheirOwnCorrectionGiveOneStem)
 	// stem is missed or its DBH is centimetres off.
 	const auto blurred = twoPasses(stems, d, true, false, nullptr);
 	EXPECT_GT(worstDbhError(stems, blurred), 0.02);
+}
+
+TEST(TreeLayer, PassesMergedDuringTheRunThenCorrectedAtTheEnd)
+{
+	// A long run merges its passes during the run at the estimate of the
+	// moment (correct(..., in_run = true)); the end moves each voxel from
+	// there. Pass 0 drifted by d; the first merge takes 80 % of it back;
+	// pass 1 is right; the second merge takes the rest (passes 0 and 1 now
+	// coincide and merge); pass 2 drifted by e, taken back at the end.
+	const std::vector<Stem> stems = {{4, 5, 0.15},
+	                                 {9, -6, 0.2},
+	                                 {14, 4, 0.1},
+	                                 {27, 6, 0.25},
+	                                 {33, -5, 0.12}};
+	const Eigen::Vector3f d(0.12, -0.08, 0.02), e(0.05, 0.03, 0);
+	TreeLayer layer(TreeOptions{}, 20.0);
+	map::CForestMap m;
+	std::mt19937 rng(5);
+	auto shift = [](const Eigen::Vector3f& v)
+	{
+		Eigen::Isometry3f T = Eigen::Isometry3f::Identity();
+		T.translation() = v;
+		return T;
+	};
+	const auto column = [](const ColumnKey&)
+	{ return Eigen::Isometry3d::Identity(); };
+	auto pass = [&](double y, double t0, const Eigen::Vector3f& off, bool out)
+	{
+		double t = t0;
+		for (double i = 0; i <= 50; i += 1.0, t += 1.0)
+		{
+			const double x = out ? -5 + i : 45 - i;
+			const Eigen::Vector3d s(x, y, ground(x, y) + 1.5);
+			auto pts = scan(stems, s, rng);
+			for (auto& p : pts) p += off;
+			layer.addScan(pts, s + off.cast<double>(), t);
+			layer.update(s + off.cast<double>(), m);
+		}
+	};
+	pass(0, 100, d, true);
+	layer.correct(
+	    [&](double ts) {
+		    return ts < 150 ? shift(-0.8f * d) : shift({0, 0, 0});
+	    },
+	    column, m, true);
+	layer.startPass();
+	pass(1, 200, Eigen::Vector3f::Zero(), false);
+	const size_t before_merge = layer.stats().stored_voxels;
+	layer.correct(
+	    [&](double ts) {
+		    return ts < 150 ? shift(-0.2f * d) : shift({0, 0, 0});
+	    },
+	    column, m, true);
+	// The two passes now agree: where both saw a stem the same 2 cm voxel
+	// holds both (different sides and noise: a few % of the voxels here).
+	EXPECT_LT(layer.stats().stored_voxels, before_merge);
+	layer.startPass();
+	pass(-1, 300, e, true);
+	layer.correct(
+	    [&](double ts) {
+		    return ts < 300 ? shift({0, 0, 0}) : shift(-e);
+	    },
+	    column, m);
+	layer.finish(m);
+	ASSERT_EQ(m.trees().size(), stems.size());
+	EXPECT_LT(worstDbhError(stems, m.trees()), 0.01);
 }

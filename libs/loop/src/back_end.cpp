@@ -1,6 +1,7 @@
 #include <forest_slam/core/log.h>
 #include <forest_slam/loop/back_end.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <ctime>
@@ -24,8 +25,9 @@ double threadCpuMs()
 }
 }  // namespace
 
-BackEnd::BackEnd(const LoopOptions& o, bool threaded)
-    : o_(o), threaded_(threaded)
+BackEnd::BackEnd(const LoopOptions& o, bool threaded,
+                 std::shared_ptr<core::SpillFile> spill)
+    : o_(o), threaded_(threaded), spill_(std::move(spill))
 {
 	if (threaded_) worker_ = std::thread([this] { run(); });
 }
@@ -152,6 +154,7 @@ void BackEnd::processKeyframe(Keyframe& kf)
 		graph_.addFactor(f);
 	}
 	kfs_.push_back(std::move(kf));
+	cloud_disk_.emplace_back();
 	stats_.keyframes++;
 	if (o_.descriptor)
 	{
@@ -182,6 +185,8 @@ void BackEnd::processKeyframe(Keyframe& kf)
 		{
 			stats_.candidates++;
 			stats_.descriptor_candidates += match.has_value();
+			const size_t m = static_cast<size_t>(o_.submap_keyframes);
+			loadClouds(j >= m ? j - m : 0, std::min(j + m, id));
 			Closure c = verifyClosure(kfs_, poses, j, id, o_,
 			                          match ? &*match : nullptr);
 			closures_.push_back(c);
@@ -208,6 +213,7 @@ void BackEnd::processKeyframe(Keyframe& kf)
 		}
 		stats_.verify_ms += msSince(t);
 	}
+	spillOldClouds(id);
 	// GNSS: re-optimise when fixes arrived (not at every keyframe).
 	if (gnss_since_opt_ > 0 &&
 	    id % static_cast<size_t>(o_.detect_every_keyframes) == 0)
@@ -218,6 +224,47 @@ void BackEnd::processKeyframe(Keyframe& kf)
 		for (size_t i = 0; i < graph_.size(); i++) out[i] = graph_.pose(i);
 		std::lock_guard<std::mutex> lk(mutex_);
 		results_[id] = std::move(out);
+	}
+}
+
+void BackEnd::loadClouds(size_t first, size_t last)
+{
+	if (!spill_) return;
+	for (size_t i = first; i <= last && i < kfs_.size(); i++)
+	{
+		const auto& d = cloud_disk_[i];
+		if (!d.written || !kfs_[i].cloud.empty() || d.count == 0) continue;
+		spill_->readVector(d.offset, d.count, kfs_[i].cloud);
+		cloud_bytes_ += d.count * sizeof(Eigen::Vector3f);
+	}
+}
+
+void BackEnd::spillOldClouds(size_t newest)
+{
+	if (!spill_) return;
+	// The coming keyframes read the last descriptor_keyframes clouds
+	// (descriptor) and the last submap_keyframes (ICP source).
+	const size_t keep = static_cast<size_t>(std::max(o_.submap_keyframes,
+	                                                 o_.descriptor_keyframes)) +
+	                    1;
+	if (newest < keep) return;
+	// Every cloud up to newest - keep is out of memory after each call, so
+	// only the one that just aged out, and those read back for candidates,
+	// are in memory here.
+	for (size_t i = 0; i + keep <= newest; i++)
+	{
+		auto& c = kfs_[i].cloud;
+		if (c.empty()) continue;
+		auto& d = cloud_disk_[i];
+		if (!d.written)
+		{
+			d.offset = spill_->appendVector(c);
+			d.count = c.size();
+			d.written = true;
+			cloud_bytes_spilled_ += d.count * sizeof(Eigen::Vector3f);
+		}
+		cloud_bytes_ -= c.capacity() * sizeof(Eigen::Vector3f);
+		std::vector<Eigen::Vector3f>().swap(c);
 	}
 }
 

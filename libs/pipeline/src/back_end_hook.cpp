@@ -9,10 +9,10 @@
 #include <forest_slam/odometry/lidar_odometry.h>
 #include <forest_slam/pipeline/mapping_pipeline.h>
 
+#include <malloc.h>
 #include <mrpt/obs/CObservationGPS.h>
 #include <mrpt/system/datetime.h>
 #include <GeographicLib/LocalCartesian.hpp>
-#include <malloc.h>
 
 #include <algorithm>
 #include <chrono>
@@ -36,7 +36,11 @@ void MappingPipeline::initBackEnd()
 		              "the back-end is off for this run");
 		return;
 	}
-	backend_ = std::make_unique<loop::BackEnd>(cfg_.loop);
+	// Keyframe clouds of a long run on disk, like the dense map's tiles.
+	std::shared_ptr<core::SpillFile> spill;
+	if (cfg_.outputs.spill_to_disk)
+		spill = std::make_shared<core::SpillFile>(cfg_.outputs.spill_dir);
+	backend_ = std::make_unique<loop::BackEnd>(cfg_.loop, true, spill);
 }
 
 namespace
@@ -135,6 +139,12 @@ void MappingPipeline::backEndScan(const PendingScan& s, core::StampedPose& pose)
 			if (moves_m > 0.5 * cfg_.forest_map.edge_voxel_m)
 			{
 				odometry_->flushMap();
+				if (map_.segmentCount() >= 2 || tree_layer_)
+				{
+					const core::Trajectory now = currentEstimate(X, C);
+					mergeForestMapSegments(now);
+					mergeTreeLayerPasses(now);
+				}
 				const size_t n = map_.segmentCount();
 				map_.startSegment();
 				if (map_.segmentCount() > n)
@@ -268,7 +278,7 @@ void MappingPipeline::finishBackEnd()
 		const size_t segments = map_.segmentCount();
 		correctDenseMap(mapped);
 		const auto t1 = std::chrono::steady_clock::now();
-		correctForestMap(mapped);
+		correctForestMap(mapped, trajectory_);
 		// The tables freed on the way go back to the system (glibc keeps
 		// freed heap otherwise: +280 MB RSS on the handheld run).
 		malloc_trim(0);
@@ -279,7 +289,8 @@ void MappingPipeline::finishBackEnd()
 		    << outputs_.dense().size() << " points) moved in "
 		    << S(t1 - t0).count() << " s, CForestMap (" << segments
 		    << " segments, " << map_.edgePointCount() + map_.planarPointCount()
-		    << " voxels once merged) in " << S(t2 - t1).count() << " s");
+		    << " voxels once merged; " << map_merges_
+		    << " merges during the run) in " << S(t2 - t1).count() << " s");
 	}
 	if (tree_layer_ && backend_->stats().optimisations > 0 && !mapped.empty())
 		correctTreeLayer(mapped);
@@ -320,8 +331,11 @@ size_t scanAt(const std::vector<double>& t, double ts)
 }
 }  // namespace
 
-void MappingPipeline::correctTreeLayer(const core::Trajectory& mapped)
+void MappingPipeline::correctTreeLayer(const core::Trajectory& as_mapped)
 {
+	// Scans before the last in-run merge of the passes: from where that
+	// merge put their voxels.
+	const core::Trajectory mapped = withMerged(as_mapped, tree_merged_pose_);
 	// Stem-band voxels move with the correction of the scan at their mean
 	// time (the passes were kept apart for this); ground cells and trees
 	// with that of the scan that passed nearest to the column's centre.
@@ -345,13 +359,14 @@ void MappingPipeline::correctTreeLayer(const core::Trajectory& mapped)
 	};
 	const auto t0 = std::chrono::steady_clock::now();
 	const size_t redetect = tree_layer_->correct(at_time, of_column, map_);
-	FS_LOG_INFO("back-end corrections: tree layer ("
-	            << tree_layer_->columns().size() << " columns) moved in "
-	            << std::chrono::duration<double>(
-	                   std::chrono::steady_clock::now() - t0)
-	                   .count()
-	            << " s; " << redetect
-	            << " columns whose passes disagreed are detected again");
+	FS_LOG_INFO(
+	    "back-end corrections: tree layer ("
+	    << tree_layer_->columns().size() << " columns) moved in "
+	    << std::chrono::duration<double>(std::chrono::steady_clock::now() - t0)
+	           .count()
+	    << " s; " << redetect
+	    << " columns whose passes disagreed are detected again; "
+	    << tree_merges_ << " merges of the passes during the run");
 }
 
 void MappingPipeline::correctDenseMap(const core::Trajectory& mapped)
@@ -373,14 +388,111 @@ void MappingPipeline::correctDenseMap(const core::Trajectory& mapped)
 	    });
 }
 
-void MappingPipeline::correctForestMap(const core::Trajectory& mapped)
+core::Trajectory MappingPipeline::currentEstimate(
+    const loop::Poses& X, const Eigen::Isometry3d& C) const
+{
+	// Scans anchored to an optimised keyframe follow it (as at the end of
+	// the run), the later ones move with C.
+	core::Trajectory now = trajectory_;
+	for (size_t i = 0; i < now.size(); i++)
+		now[i].pose = anchors_[i].keyframe < X.size()
+		                  ? X[anchors_[i].keyframe] * anchors_[i].offset
+		                  : C * trajectory_[i].pose;
+	return now;
+}
+
+core::Trajectory MappingPipeline::withMerged(
+    const core::Trajectory& mapped,
+    const std::vector<Eigen::Isometry3d,
+                      Eigen::aligned_allocator<Eigen::Isometry3d>>& merged)
+    const
+{
+	core::Trajectory out = mapped;
+	for (size_t i = 0; i < merged.size() && i < out.size(); i++)
+		out[i].pose = merged[i];
+	return out;
+}
+
+void MappingPipeline::mergeTreeLayerPasses(const core::Trajectory& now)
+{
+	// The map worker is idle (flushed): its counts can be read.
+	if (!tree_layer_) return;
+	const size_t voxels = tree_layer_->stats().stored_voxels;
+	if (2 * voxels < 3 * tree_voxels_at_merge_) return;
+	const core::Trajectory mapped = withMerged(trajectory_, tree_merged_pose_);
+	auto C = std::make_shared<std::vector<
+	    Eigen::Isometry3f, Eigen::aligned_allocator<Eigen::Isometry3f>>>(
+	    scanCorrections(now, mapped));
+	auto t = std::make_shared<std::vector<double>>(scanTimes(mapped));
+	// Ground cells and trees: the correction of the scan nearest to the
+	// column's centre (as in correctTreeLayer).
+	auto xy = std::make_shared<std::vector<Eigen::Vector2d>>();
+	for (const auto& p : mapped) xy->push_back(p.pose.translation().head<2>());
+	const double column_m = tree_layer_->columnSize();
+	odometry_->runOnMap(
+	    [this, C, t, xy, column_m](map::CForestMap& m)
+	    {
+		    const auto at_time = [&](double ts)
+		    { return (*C)[scanAt(*t, ts)]; };
+		    const auto of_column = [&](const trees::ColumnKey& k)
+		    {
+			    const Eigen::Vector2d centre((k.x + 0.5) * column_m,
+			                                 (k.y + 0.5) * column_m);
+			    size_t best = 0;
+			    double bd = 1e300;
+			    for (size_t i = 0; i < xy->size(); i++)
+			    {
+				    const double d = ((*xy)[i] - centre).squaredNorm();
+				    if (d < bd) bd = d, best = i;
+			    }
+			    return Eigen::Isometry3d((*C)[best].cast<double>());
+		    };
+		    tree_layer_->correct(at_time, of_column, m, true);
+	    });
+	tree_merged_pose_.resize(now.size());
+	for (size_t i = 0; i < now.size(); i++) tree_merged_pose_[i] = now[i].pose;
+	// The count after the merge is known only on the worker: the next
+	// merge waits for half as many again as before this one.
+	tree_voxels_at_merge_ = voxels;
+	tree_merges_++;
+}
+
+void MappingPipeline::mergeForestMapSegments(const core::Trajectory& now)
+{
+	const size_t voxels = map_.edgePointCount() + map_.planarPointCount();
+	if (map_.segmentCount() < 2 || 2 * voxels < 3 * map_voxels_at_merge_)
+		return;
+	const auto t0 = std::chrono::steady_clock::now();
+	const size_t segments = map_.segmentCount();
+	correctForestMap(trajectory_, now);
+	map_merged_pose_.resize(now.size());
+	for (size_t i = 0; i < now.size(); i++) map_merged_pose_[i] = now[i].pose;
+	map_voxels_at_merge_ = map_.edgePointCount() + map_.planarPointCount();
+	map_merges_++;
+	FS_LOG_DEBUG("CForestMap: " << segments << " segments, " << voxels
+	                            << " voxels merged into "
+	                            << map_voxels_at_merge_ << " in "
+	                            << std::chrono::duration<double>(
+	                                   std::chrono::steady_clock::now() - t0)
+	                                   .count()
+	                            << " s");
+}
+
+void MappingPipeline::correctForestMap(const core::Trajectory& as_mapped,
+                                       const core::Trajectory& target)
 {
 	// A voxel averages many scans: it moves with the correction of the
-	// scan of its segment that passed nearest to it (horizontally, as
-	// mapped), like the tree columns. Segments keep the voxels mapped
-	// before and after each correction apart, so a revisited place does
-	// not mix a drifted first pass with the corrected second one.
-	const auto C = scanCorrections(trajectory_, mapped);
+	// scan of its segment that passed nearest to it (horizontally, where
+	// its voxels are), like the tree columns. Segments keep the voxels
+	// mapped before and after each correction apart, so a revisited place
+	// does not mix a drifted first pass with the corrected second one.
+	// In long runs the segments are merged during the run too (at the
+	// estimate then, mergeForestMapSegments): the first scans' voxels are
+	// where that merge put them.
+	core::Trajectory mapped = as_mapped;
+	for (size_t i = 0; i < map_merged_pose_.size() && i < mapped.size(); i++)
+		mapped[i].pose = map_merged_pose_[i];
+	const auto C = scanCorrections(target, mapped);
 	if (map_.segmentCount() != map_segment_first_scan_.size() + 1)
 		throw std::logic_error("back-end: CForestMap segment bookkeeping");
 	// Candidates per segment: its scans 0.5 m apart, without the scan
@@ -427,6 +539,7 @@ void MappingPipeline::correctForestMap(const core::Trajectory& mapped)
 		    }
 		    return C[it->second];
 	    });
+	map_segment_first_scan_.clear();
 }
 
 std::optional<outputs::GeoOptions> MappingPipeline::estimatedGeoreference()

@@ -34,7 +34,11 @@ MemorySample sampleMemory(const MappingPipeline& p)
 		s.local_map_mb = toMb(o->localMap().memoryBytes());
 		s.ground_mb = toMb(o->groundLattice().nodes().memoryBytes());
 	}
-	if (const auto* b = p.backEnd()) s.back_end_mb = toMb(b->cloudBytes());
+	if (const auto* b = p.backEnd())
+	{
+		s.back_end_mb = toMb(b->cloudBytes());
+		s.spilled_mb += toMb(b->cloudBytesSpilled());
+	}
 	s.trajectory_mb =
 	    toMb(core::vectorBytes(p.trajectory()) +
 	         core::vectorBytes(st.stage_ms) + core::vectorBytes(st.tree_ms));

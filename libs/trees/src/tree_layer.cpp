@@ -92,7 +92,7 @@ void TreeLayer::SortedVoxels::transform(const Eigen::Isometry3f& T)
 
 float TreeLayer::SortedVoxels::transformByTime(
     const std::function<Eigen::Isometry3f(float)>& at,
-    const Eigen::Isometry3f& T)
+    const Eigen::Isometry3f& T, bool dominant_time)
 {
 	compact();
 	std::vector<Voxel> moved;
@@ -106,10 +106,40 @@ float TreeLayer::SortedVoxels::transformByTime(
 		const uint64_t k = keyOf(c);
 		// Corrected, the passes agree: merged again (pass 0).
 		moved.push_back({k, (c - centreOf(k)) * float(v.count),
-		                 C.linear() * v.dir, v.count, v.segment, v.time, 0});
+		                 C.linear() * v.dir, v.count, v.segment, v.time,
+		                 dominant_time ? v.pass : 0});
 	}
 	voxels_.clear();
 	mergeIn(moved);
+	if (!dominant_time) return worst;
+	// Within a pass the times were averaged (mergeIn); across passes the
+	// time of the largest count stays.
+	std::stable_sort(voxels_.begin(), voxels_.end(),
+	                 [](const Voxel& a, const Voxel& b)
+	                 {
+		                 return a.key != b.key           ? a.key < b.key
+		                        : a.segment != b.segment ? a.segment < b.segment
+		                                                 : a.count > b.count;
+	                 });
+	std::vector<Voxel> merged;
+	merged.reserve(voxels_.size());
+	for (const auto& v : voxels_)
+	{
+		if (!merged.empty() && merged.back().key == v.key &&
+		    merged.back().segment == v.segment)
+		{
+			auto& m = merged.back();
+			m.sum += v.sum;
+			m.dir += v.dir;
+			m.count += v.count;
+		}
+		else
+		{
+			merged.push_back(v);
+			merged.back().pass = 0;
+		}
+	}
+	voxels_.swap(merged);
 	return worst;
 }
 
@@ -334,10 +364,10 @@ void TreeLayer::addScan(const std::vector<Eigen::Vector3f>& pts,
 		col->dirty = true;
 		const Eigen::Vector3f d = pts[i] - sensor.cast<float>();
 		const float n = d.norm();
-		col->stem.add(
-		    pts[i], n > 0 ? Eigen::Vector3f(d / n) : Eigen::Vector3f::Zero(),
-		    tagged && h >= seg_lo && h <= seg_hi ? tag(pts[i]) : 0, t_rel,
-		    pass_);
+		col->stem.add(pts[i],
+		              n > 0 ? Eigen::Vector3f(d / n) : Eigen::Vector3f::Zero(),
+		              tagged && h >= seg_lo && h <= seg_hi ? tag(pts[i]) : 0,
+		              t_rel, pass_);
 	}
 	stats_.stored_voxels = 0;
 	for (auto& [k, c] : cols_)
@@ -526,7 +556,7 @@ void TreeLayer::startPass()
 size_t TreeLayer::correct(
     const std::function<Eigen::Isometry3f(double t_s)>& at_time,
     const std::function<Eigen::Isometry3d(const ColumnKey&)>& of_column,
-    map::CForestMap& map)
+    map::CForestMap& map, bool in_run)
 {
 	if (released_)
 		throw std::logic_error("TreeLayer::correct after releaseStemVoxels");
@@ -541,7 +571,7 @@ size_t TreeLayer::correct(
 		SortedVoxels& stem = resident(c);
 		stats_.stored_voxels -= stem.size();
 		const float worst = stem.transformByTime(
-		    [&](float t) { return at_time(t0 + double(t)); }, Tf);
+		    [&](float t) { return at_time(t0 + double(t)); }, Tf, in_run);
 		stats_.stored_voxels += stem.size();
 		moveGroundAndTrees(c, T);
 		// Passes that disagreed (or points off the column's correction by

@@ -9,6 +9,7 @@
 // k + latency_keyframes (resultAt waits if the worker is behind). So the
 // worker runs in parallel with the odometry while the trajectory does not
 // depend on thread timing.
+#include <forest_slam/core/spill_file.h>
 #include <forest_slam/loop/loop_detector.h>
 #include <forest_slam/loop/loop_options.h>
 #include <forest_slam/loop/pose_graph.h>
@@ -51,8 +52,11 @@ class BackEnd
 {
    public:
 	/** `threaded` false: everything runs in the caller (tests, debugging);
-	 * the results are the same. */
-	explicit BackEnd(const LoopOptions& o, bool threaded = true);
+	 * the results are the same. With `spill`, the clouds of keyframes
+	 * older than the newest few are kept there (read back for the loop
+	 * candidates they serve): the memory of a long run stays flat. */
+	explicit BackEnd(const LoopOptions& o, bool threaded = true,
+	                 std::shared_ptr<core::SpillFile> spill = nullptr);
 	~BackEnd();
 	BackEnd(const BackEnd&) = delete;
 	BackEnd& operator=(const BackEnd&) = delete;
@@ -74,8 +78,10 @@ class BackEnd
 	std::vector<Closure> closures() const;
 	BackEndStats stats() const;
 	std::optional<MapToEnu> mapToEnu() const;
-	/** Bytes of the keyframe clouds handed in so far (any thread). */
+	/** Bytes of the keyframe clouds in memory (any thread). */
 	size_t cloudBytes() const { return cloud_bytes_.load(); }
+	/** Bytes of keyframe clouds in the spill file. */
+	size_t cloudBytesSpilled() const { return cloud_bytes_spilled_.load(); }
 
    private:
 	struct Item
@@ -98,11 +104,24 @@ class BackEnd
 	long processed_ = -1;  ///< last keyframe processed
 	bool stop_ = false;
 	size_t next_id_ = 0;
-	std::atomic<size_t> cloud_bytes_{0};
+	std::atomic<size_t> cloud_bytes_{0}, cloud_bytes_spilled_{0};
 	std::thread worker_;
 	// Worker state (only the worker touches it until finish()).
 	std::vector<Keyframe> kfs_;
 	std::vector<PlaceDescriptor> descriptors_;  ///< one per keyframe
+	// Keyframe clouds on disk (worker): where each one is, if written.
+	std::shared_ptr<core::SpillFile> spill_;
+	struct CloudOnDisk
+	{
+		uint64_t offset = 0;
+		size_t count = 0;
+		bool written = false;
+	};
+	std::vector<CloudOnDisk> cloud_disk_;  ///< one per keyframe
+	/** Reads the clouds of keyframes first..last back if spilled. */
+	void loadClouds(size_t first, size_t last);
+	/** Spills the clouds no coming descriptor or ICP source needs. */
+	void spillOldClouds(size_t newest);
 	PoseGraph graph_;
 	std::vector<Closure> closures_;
 	BackEndStats stats_;

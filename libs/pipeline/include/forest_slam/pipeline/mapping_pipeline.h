@@ -33,8 +33,8 @@ struct RunStats
 	uint64_t scans_empty = 0;          ///< no valid return
 	uint64_t scans_out_of_order = 0;   ///< time not after the previous scan
 	uint64_t scans_outside_poses = 0;  ///< no pose for their time
-	uint64_t scans_unreadable = 0;	///< unknown model / malformed image
-	uint64_t scans_degenerate = 0;	///< odometry: weak geometry
+	uint64_t scans_unreadable = 0;     ///< unknown model / malformed image
+	uint64_t scans_degenerate = 0;     ///< odometry: weak geometry
 	uint64_t scans_unregistered =
 	    0;  ///< odometry: motion model carried the pose
 	/** Online, pipeline behind the sensors: motion-model pose only, not
@@ -175,12 +175,14 @@ class MappingPipeline
 	// the map frame feed the layer, which updates map_'s trees.
 	std::unique_ptr<trees::TreeLayer> tree_layer_;
 	void feedTreeLayer(const std::vector<Eigen::Vector3f>& a,
-					   const std::vector<Eigen::Vector3f>& b,
-					   const Eigen::Vector3d& sensor);
+	                   const std::vector<Eigen::Vector3f>& b,
+	                   const Eigen::Vector3d& sensor);
 	void feedTreeLayerOdometry(const Eigen::Isometry3d& scan_pose);
 	void finishTreeLayer();
 	/** End of the run (back_end_hook.cpp): the tree layer follows the
 	 * final trajectory, its passes each with their own correction. */
+	/** Moves the tree layer from where it is (`mapped`, the trajectory as
+	 * mapped, with the poses of the last in-run merge) to trajectory_. */
 	void correctTreeLayer(const core::Trajectory& mapped);
 	/** Lidar pose in the map frame at absolute time t (--poses files hold
 	 * lidar poses, like our own trajectory.tum, so they can be fed back). */
@@ -213,11 +215,46 @@ class MappingPipeline
 	 * each segment after the first; a new one starts after a correction
 	 * that moves the map by more than half an edge voxel. */
 	std::vector<size_t> map_segment_first_scan_;
+	/** Poses of the first scans in the frame their CForestMap voxels are
+	 * in since the last in-run merge of the segments (the back-end's
+	 * estimate then); the later scans' voxels are where they were mapped
+	 * (trajectory_). */
+	std::vector<Eigen::Isometry3d, Eigen::aligned_allocator<Eigen::Isometry3d>>
+	    map_merged_pose_;
+	size_t map_voxels_at_merge_ = 0;  ///< CForestMap voxels after it
+	size_t map_merges_ = 0;           ///< in-run merges so far
+	/** The same for the tree layer's stem-band voxels (merged on their
+	 * own schedule, on the map worker). */
+	std::vector<Eigen::Isometry3d, Eigen::aligned_allocator<Eigen::Isometry3d>>
+	    tree_merged_pose_;
+	size_t tree_voxels_at_merge_ = 0;
+	size_t tree_merges_ = 0;
+	/** The back-end's estimate of every scan mapped so far, after the
+	 * correction `C` with keyframe estimate `X`. */
+	core::Trajectory currentEstimate(const loop::Poses& X,
+	                                 const Eigen::Isometry3d& C) const;
+	/** trajectory_ with its first poses replaced by `merged`. */
+	core::Trajectory withMerged(
+	    const core::Trajectory& mapped,
+	    const std::vector<Eigen::Isometry3d,
+	                      Eigen::aligned_allocator<Eigen::Isometry3d>>& merged)
+	    const;
 	void initBackEnd();
 	/** The dense map and the CForestMap follow the corrections: `mapped`
 	 * is the trajectory as the scans were mapped. */
 	void correctDenseMap(const core::Trajectory& mapped);
-	void correctForestMap(const core::Trajectory& mapped);
+	/** Moves the CForestMap's voxels from where they are (`mapped`: the
+	 * scans as mapped) to `target` and merges the segments into one. */
+	void correctForestMap(const core::Trajectory& mapped,
+	                      const core::Trajectory& target);
+	/** In the run, after the correction `C` (old map frame to new) with the
+	 * back-end's keyframe estimate `X`: merges the CForestMap segments at
+	 * that estimate when they hold half as many voxels again as after the
+	 * last merge (each revisit after a correction copies what it sees). */
+	void mergeForestMapSegments(const core::Trajectory& now);
+	/** Likewise the tree layer's passes (a job on the map worker) when
+	 * the layer holds half as many stem voxels again as after the last. */
+	void mergeTreeLayerPasses(const core::Trajectory& now);
 	/** After the odometry posed scan `s`: may move `pose` (correction). */
 	void backEndScan(const PendingScan& s, core::StampedPose& pose);
 	void backEndGnss(const mrpt::obs::CObservation& obs);

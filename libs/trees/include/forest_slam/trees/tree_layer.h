@@ -90,11 +90,17 @@ class TreeLayer
 	 * `of_column(key)`. A column whose voxels all move within
 	 * layer_voxel_m / 2 of its own correction moves rigidly and keeps its
 	 * trees; the others are detected again at finish(). Returns the number
-	 * of those. */
+	 * of those.
+	 * `in_run`: a merge during the run (the passes of a long run would
+	 * otherwise pile up, one more per lap, in every column): the merged
+	 * voxel keeps the time of the pass that saw it most, so that a later
+	 * correction looks up a scan that was there (the mean time of passes
+	 * minutes apart is a scan elsewhere); the columns to detect again are
+	 * detected when due, as in update(). */
 	size_t correct(
 	    const std::function<Eigen::Isometry3f(double t_s)>& at_time,
 	    const std::function<Eigen::Isometry3d(const ColumnKey&)>& of_column,
-	    map::CForestMap& map);
+	    map::CForestMap& map, bool in_run = false);
 
 	/** End of a run, after finish(): frees the stem-band voxels (in memory
 	 * and spilled; 1.2 GB at the end of the 7-minute handheld run, whose
@@ -176,12 +182,13 @@ class TreeLayer
 			}
 		}
 		void transform(const Eigen::Isometry3f& T);
-		/** Moves each voxel with `at(mean time)` and merges the passes;
-		 * returns the largest distance between where a voxel went and
-		 * where `T` would have put it. */
-		float transformByTime(
-		    const std::function<Eigen::Isometry3f(float)>& at,
-		    const Eigen::Isometry3f& T);
+		/** Moves each voxel with `at(mean time)` and merges the passes
+		 * (the merged time: weighted mean, or with `dominant_time` that of
+		 * the pass with most points); returns the largest distance between
+		 * where a voxel went and where `T` would have put it. */
+		float transformByTime(const std::function<Eigen::Isometry3f(float)>& at,
+		                      const Eigen::Isometry3f& T,
+		                      bool dominant_time = false);
 		/** Drops every voxel (and forgets a spilled set). */
 		void release()
 		{
@@ -213,10 +220,7 @@ class TreeLayer
 			       pending_.capacity() * sizeof(Pending);
 		}
 		/** Voxels (or points) held in memory. */
-		size_t sizeInMemory() const
-		{
-			return voxels_.size() + pending_.size();
-		}
+		size_t sizeInMemory() const { return voxels_.size() + pending_.size(); }
 
 	   private:
 		struct Voxel
