@@ -111,7 +111,7 @@ class DenseMap
 	};
 	struct Tile
 	{
-		int64_t tx = 0, ty = 0;  ///< tile index (voxel index / tile_vox_)
+		int64_t tx = 0, ty = 0;     ///< tile index (voxel index / tile_vox_)
 		std::vector<Chunk> chunks;  ///< on disk: the tile's first points
 		std::vector<DensePoint> points;  ///< in memory: the points after
 		size_t count = 0;                ///< chunks + points
