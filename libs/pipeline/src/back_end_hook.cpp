@@ -329,6 +329,31 @@ size_t scanAt(const std::vector<double>& t, double ts)
 	const size_t u = std::upper_bound(t.begin(), t.end(), ts) - t.begin();
 	return u > 0 ? u - 1 : 0;
 }
+
+std::vector<Eigen::Vector2d> scanPositions(const core::Trajectory& mapped)
+{
+	std::vector<Eigen::Vector2d> xy;
+	xy.reserve(mapped.size());
+	for (const auto& p : mapped) xy.push_back(p.pose.translation().head<2>());
+	return xy;
+}
+
+/** The scan that passed nearest (horizontally) to the centre of column k:
+ * its correction moves the column's ground cells and trees. */
+size_t scanNearestColumn(const std::vector<Eigen::Vector2d>& xy,
+                         const trees::ColumnKey& k, double column_m)
+{
+	const Eigen::Vector2d centre((k.x + 0.5) * column_m,
+	                             (k.y + 0.5) * column_m);
+	size_t best = 0;
+	double bd = 1e300;
+	for (size_t i = 0; i < xy.size(); i++)
+	{
+		const double d = (xy[i] - centre).squaredNorm();
+		if (d < bd) bd = d, best = i;
+	}
+	return best;
+}
 }  // namespace
 
 void MappingPipeline::correctTreeLayer(const core::Trajectory& as_mapped)
@@ -342,20 +367,12 @@ void MappingPipeline::correctTreeLayer(const core::Trajectory& as_mapped)
 	const auto C = scanCorrections(trajectory_, mapped);
 	const auto t = scanTimes(mapped);
 	const auto at_time = [&](double ts) { return C[scanAt(t, ts)]; };
+	const auto xy = scanPositions(mapped);
 	const auto of_column = [&](const trees::ColumnKey& k)
 	{
-		const double c = tree_layer_->columnSize();
-		const Eigen::Vector2d centre((k.x + 0.5) * c, (k.y + 0.5) * c);
-		size_t best = 0;
-		double bd = 1e300;
-		for (size_t i = 0; i < mapped.size(); i++)
-		{
-			const double d =
-			    (mapped[i].pose.translation().head<2>() - centre).squaredNorm();
-			if (d < bd) bd = d, best = i;
-		}
-		return Eigen::Isometry3d(trajectory_[best].pose *
-		                         mapped[best].pose.inverse());
+		const size_t n = scanNearestColumn(xy, k, tree_layer_->columnSize());
+		return Eigen::Isometry3d(trajectory_[n].pose *
+		                         mapped[n].pose.inverse());
 	};
 	const auto t0 = std::chrono::steady_clock::now();
 	const size_t redetect = tree_layer_->correct(at_time, of_column, map_);
@@ -426,8 +443,8 @@ void MappingPipeline::mergeTreeLayerPasses(const core::Trajectory& now)
 	auto t = std::make_shared<std::vector<double>>(scanTimes(mapped));
 	// Ground cells and trees: the correction of the scan nearest to the
 	// column's centre (as in correctTreeLayer).
-	auto xy = std::make_shared<std::vector<Eigen::Vector2d>>();
-	for (const auto& p : mapped) xy->push_back(p.pose.translation().head<2>());
+	auto xy =
+	    std::make_shared<std::vector<Eigen::Vector2d>>(scanPositions(mapped));
 	const double column_m = tree_layer_->columnSize();
 	odometry_->runOnMap(
 	    [this, C, t, xy, column_m](map::CForestMap& m)
@@ -436,16 +453,8 @@ void MappingPipeline::mergeTreeLayerPasses(const core::Trajectory& now)
 		    { return (*C)[scanAt(*t, ts)]; };
 		    const auto of_column = [&](const trees::ColumnKey& k)
 		    {
-			    const Eigen::Vector2d centre((k.x + 0.5) * column_m,
-			                                 (k.y + 0.5) * column_m);
-			    size_t best = 0;
-			    double bd = 1e300;
-			    for (size_t i = 0; i < xy->size(); i++)
-			    {
-				    const double d = ((*xy)[i] - centre).squaredNorm();
-				    if (d < bd) bd = d, best = i;
-			    }
-			    return Eigen::Isometry3d((*C)[best].cast<double>());
+			    return Eigen::Isometry3d(
+			        (*C)[scanNearestColumn(*xy, k, column_m)].cast<double>());
 		    };
 		    tree_layer_->correct(at_time, of_column, m, true);
 	    });
