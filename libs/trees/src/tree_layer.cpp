@@ -75,19 +75,17 @@ void TreeLayer::SortedVoxels::compact(size_t max_pending)
 void TreeLayer::SortedVoxels::transform(const Eigen::Isometry3f& T)
 {
 	compact();
-	// Centroids move exactly; voxels meeting in one cell are merged.
-	std::vector<Voxel> moved;
-	moved.reserve(voxels_.size());
-	for (const auto& v : voxels_)
+	// Centroids move exactly; voxels meeting in one cell are merged. In
+	// place: a long run's column holds millions of voxels, and a moved
+	// copy plus a merged one tripled it at the final correction.
+	for (auto& v : voxels_)
 	{
 		const Eigen::Vector3f c = T * centroid(v);
-		const uint64_t k = keyOf(c);
-		moved.push_back({k, (c - centreOf(k)) * float(v.count),
-		                 T.linear() * v.dir, v.count, v.segment, v.time,
-		                 v.pass});
+		v.key = keyOf(c);
+		v.sum = (c - centreOf(v.key)) * float(v.count);
+		v.dir = T.linear() * v.dir;
 	}
-	voxels_.clear();
-	mergeIn(moved);
+	sortAndCombine();
 }
 
 float TreeLayer::SortedVoxels::transformByTime(
@@ -95,25 +93,22 @@ float TreeLayer::SortedVoxels::transformByTime(
     const Eigen::Isometry3f& T, bool dominant_time)
 {
 	compact();
-	std::vector<Voxel> moved;
-	moved.reserve(voxels_.size());
 	float worst = 0;
-	for (const auto& v : voxels_)
+	for (auto& v : voxels_)  // in place, as transform()
 	{
 		const Eigen::Isometry3f C = at(v.time);
 		const Eigen::Vector3f c0 = centroid(v), c = C * c0;
 		worst = std::max(worst, (c - T * c0).norm());
-		const uint64_t k = keyOf(c);
+		v.key = keyOf(c);
+		v.sum = (c - centreOf(v.key)) * float(v.count);
+		v.dir = C.linear() * v.dir;
 		// Corrected, the passes agree: merged again (pass 0).
-		moved.push_back({k, (c - centreOf(k)) * float(v.count),
-		                 C.linear() * v.dir, v.count, v.segment, v.time,
-		                 dominant_time ? v.pass : 0});
+		if (!dominant_time) v.pass = 0;
 	}
-	voxels_.clear();
-	mergeIn(moved);
+	sortAndCombine();
 	if (!dominant_time) return worst;
-	// Within a pass the times were averaged (mergeIn); across passes the
-	// time of the largest count stays.
+	// Within a pass the times were averaged (sortAndCombine); across passes
+	// the time of the largest count stays.
 	std::stable_sort(voxels_.begin(), voxels_.end(),
 	                 [](const Voxel& a, const Voxel& b)
 	                 {
@@ -121,25 +116,25 @@ float TreeLayer::SortedVoxels::transformByTime(
 		                        : a.segment != b.segment ? a.segment < b.segment
 		                                                 : a.count > b.count;
 	                 });
-	std::vector<Voxel> merged;
-	merged.reserve(voxels_.size());
-	for (const auto& v : voxels_)
+	size_t w = 0;
+	for (size_t i = 0; i < voxels_.size(); i++)
 	{
-		if (!merged.empty() && merged.back().key == v.key &&
-		    merged.back().segment == v.segment)
+		const Voxel& v = voxels_[i];
+		if (i > 0 && voxels_[w].key == v.key && voxels_[w].segment == v.segment)
 		{
-			auto& m = merged.back();
+			auto& m = voxels_[w];
 			m.sum += v.sum;
 			m.dir += v.dir;
 			m.count += v.count;
 		}
 		else
 		{
-			merged.push_back(v);
-			merged.back().pass = 0;
+			if (i > 0) w++;
+			voxels_[w] = v;
+			voxels_[w].pass = 0;
 		}
 	}
-	voxels_.swap(merged);
+	voxels_.resize(voxels_.empty() ? 0 : w + 1);
 	return worst;
 }
 
@@ -189,38 +184,68 @@ TreeLayer::SortedVoxels TreeLayer::SortedVoxels::loaded(
 	return copy;
 }
 
-void TreeLayer::SortedVoxels::mergeIn(std::vector<Voxel>& add)
+namespace
+{
+template <class V>
+bool voxelLess(const V& a, const V& b)
+{
+	return a.key != b.key     ? a.key < b.key
+	       : a.pass != b.pass ? a.pass < b.pass
+	                          : a.segment < b.segment;
+}
+/** Sums `v` into `m` (same key, pass and segment): the time averaged. */
+template <class V>
+void combine(V& m, const V& v)
+{
+	m.time = float((double(m.time) * m.count + double(v.time) * v.count) /
+	               double(m.count + v.count));
+	m.sum += v.sum;
+	m.dir += v.dir;
+	m.count += v.count;
+}
+}  // namespace
+
+void TreeLayer::SortedVoxels::sortAndCombine()
 {
 	changed_ = true;
-	auto less = [](const Voxel& a, const Voxel& b)
+	std::sort(voxels_.begin(), voxels_.end(), voxelLess<Voxel>);
+	size_t w = 0;
+	for (size_t i = 1; i < voxels_.size(); i++)
 	{
-		return a.key != b.key     ? a.key < b.key
-		       : a.pass != b.pass ? a.pass < b.pass
-		                          : a.segment < b.segment;
-	};
-	std::sort(add.begin(), add.end(), less);
+		const Voxel& v = voxels_[i];
+		Voxel& m = voxels_[w];
+		if (m.key == v.key && m.pass == v.pass && m.segment == v.segment)
+			combine(m, v);
+		else
+			voxels_[++w] = v;
+	}
+	voxels_.resize(voxels_.empty() ? 0 : w + 1);
+}
+
+void TreeLayer::SortedVoxels::mergeIn(std::vector<Voxel>& add)
+{
+	if (voxels_.empty())
+	{
+		voxels_.swap(add);
+		sortAndCombine();
+		return;
+	}
+	changed_ = true;
+	std::sort(add.begin(), add.end(), voxelLess<Voxel>);
 	std::vector<Voxel> merged;
 	merged.reserve(voxels_.size() + add.size());
 	auto push = [&](const Voxel& v)
 	{
 		if (!merged.empty() && merged.back().key == v.key &&
 		    merged.back().pass == v.pass && merged.back().segment == v.segment)
-		{
-			auto& m = merged.back();
-			m.time =
-			    float((double(m.time) * m.count + double(v.time) * v.count) /
-			          double(m.count + v.count));
-			m.sum += v.sum;
-			m.dir += v.dir;
-			m.count += v.count;
-		}
+			combine(merged.back(), v);
 		else
 			merged.push_back(v);
 	};
 	size_t i = 0, j = 0;
 	while (i < voxels_.size() || j < add.size())
 		if (j == add.size() ||
-		    (i < voxels_.size() && !less(add[j], voxels_[i])))
+		    (i < voxels_.size() && !voxelLess(add[j], voxels_[i])))
 			push(voxels_[i++]);
 		else
 			push(add[j++]);

@@ -253,6 +253,8 @@ class TreeLayer
 		uint64_t keyOf(const Eigen::Vector3f& p) const;
 		/** Sorts `add` and merges it into voxels_ (equal keys summed). */
 		void mergeIn(std::vector<Voxel>& add);
+		/** Sorts voxels_ in place and sums equal (key, pass, segment). */
+		void sortAndCombine();
 		Eigen::Vector3f centreOf(uint64_t key) const;
 		Eigen::Vector3f centroid(const Voxel& v) const
 		{
