@@ -233,3 +233,26 @@ TEST(Pipeline, OdometryTracksAMovingSensor)
 	EXPECT_LT(worst, 0.08) << "worst position error over " << n << " scans";
 	EXPECT_EQ(p.stats().stage_ms.size(), static_cast<size_t>(n));
 }
+
+TEST(Pipeline, TreeLayerDetectDuringRunIsCheckedByName)
+{
+	auto cfg = core::TrackedConfig::fromText(
+	    "[trees]\nlayer_detect_during_run = sometimes\n", "t.ini");
+	try
+	{
+		pipeline::MappingConfig::load(cfg);
+		FAIL() << "a bad layer_detect_during_run was accepted";
+	}
+	catch (const core::ConfigError& e)
+	{
+		const std::string what = e.what();
+		EXPECT_NE(what.find("t.ini"), std::string::npos) << what;
+		EXPECT_NE(what.find("layer_detect_during_run"), std::string::npos)
+		    << what;
+		EXPECT_NE(what.find("sometimes"), std::string::npos) << what;
+	}
+	auto ok = core::TrackedConfig::fromText(
+	    "[trees]\nlayer_detect_during_run = false\n", "t.ini");
+	EXPECT_EQ(pipeline::MappingConfig::load(ok).trees.layer_detect_during_run,
+	          "false");
+}

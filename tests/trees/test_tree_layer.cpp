@@ -190,6 +190,78 @@ TEST(TreeLayer, SpilledColumnsReloadIdentically)
 	EXPECT_EQ(mem.stats().stored_voxels, spill.stats().stored_voxels);
 }
 
+// A recorded run ([trees] layer_detect_during_run = false): nothing is
+// detected before finish(), columns the sensor has left go to disk though
+// not yet detected, and finish() finds the trees the per-column detection
+// during the run finds, once per column.
+TEST(TreeLayer, DetectionOnceAtTheEndFindsTheSameTrees)
+{
+	const std::vector<Stem> stems = {{4, 5, 0.15},
+	                                 {19.98, -4, 0.18},
+	                                 {27, 6, 0.25},
+	                                 {66, 3, 0.2},
+	                                 {85, -5, 0.12}};
+	TreeOptions o;
+	TreeLayer during(o, 20.0, true), at_end(o, 20.0, false);
+	map::CForestMap m_during, m_end;
+	std::mt19937 rng(5);
+	size_t max_spilled = 0;
+	auto step = [&](double x)
+	{
+		const Eigen::Vector3d s(x, 0, ground(x, 0) + 1.5);
+		const auto pts = scan(stems, s, rng);
+		during.addScan(pts, s);
+		at_end.addScan(pts, s);
+		during.update(s, m_during);
+		EXPECT_EQ(at_end.update(s, m_end), 0u) << "at x=" << x;
+		EXPECT_TRUE(m_end.trees().empty()) << "at x=" << x;
+		max_spilled = std::max(max_spilled, at_end.spilledBytes());
+	};
+	for (double x = -5; x <= 95; x += 2.0) step(x);
+	for (double x = 95; x >= 40; x -= 2.0) step(x);  // a revisit
+	EXPECT_GT(max_spilled, 0u) << "columns left behind stayed in memory";
+	EXPECT_GT(during.stats().detections, 0u);
+	EXPECT_EQ(at_end.stats().detections, 0u);
+	during.finish(m_during);
+	size_t columns = 0;  // with stem-band points (the others hold ground)
+	for (const auto& k : at_end.columns())
+		columns += at_end.stemPoints(k).empty() ? 0 : 1;
+	EXPECT_GE(columns, 5u);
+	EXPECT_EQ(at_end.finish(m_end), columns);
+	EXPECT_EQ(at_end.stats().detections, columns);
+	EXPECT_GT(during.stats().detections, at_end.stats().detections);
+	ASSERT_EQ(m_end.trees().size(), stems.size());
+	ASSERT_EQ(m_during.trees().size(), stems.size());
+	for (const auto& t : stems)
+	{
+		auto nearest = [&](const map::CForestMap& m)
+		{
+			const map::TreeRecord* best = nullptr;
+			for (const auto& r : m.trees())
+				if (!best || std::hypot(r.x - t.x, r.y - t.y) <
+				                 std::hypot(best->x - t.x, best->y - t.y))
+					best = &r;
+			return *best;
+		};
+		const auto a = nearest(m_during), b = nearest(m_end);
+		EXPECT_LT(std::hypot(b.x - t.x, b.y - t.y), 0.02) << t.x;
+		EXPECT_NEAR(b.dbh_m, 2 * t.r, 0.01) << t.x;
+		EXPECT_NEAR(a.dbh_m, b.dbh_m, 1e-5) << t.x;
+	}
+}
+
+TEST(TreeOptions, DetectDuringRunResolvesAutoByInput)
+{
+	TreeOptions o;
+	EXPECT_EQ(o.layer_detect_during_run, "auto");
+	EXPECT_TRUE(o.detectDuringRun(true));
+	EXPECT_FALSE(o.detectDuringRun(false));
+	o.layer_detect_during_run = "true";
+	EXPECT_TRUE(o.detectDuringRun(false));
+	o.layer_detect_during_run = "false";
+	EXPECT_FALSE(o.detectDuringRun(true));
+}
+
 // Multi-view DBH (dbh_segment_scans > 0): a pose error that jumps by 4 cm
 // halfway along the path doubles the rings of the stems seen before and
 // after it; with the breast-height band kept per time segment each segment

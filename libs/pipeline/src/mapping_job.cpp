@@ -22,8 +22,8 @@ namespace forest_slam::pipeline
 namespace
 {
 std::atomic<int> g_stop_signal{0};
-std::atomic<int> g_stop_signals{0};	 // how many arrived
-int g_signal_scopes = 0;  // nesting depth of StopSignalScope
+std::atomic<int> g_stop_signals{0};  // how many arrived
+int g_signal_scopes = 0;             // nesting depth of StopSignalScope
 struct sigaction g_old_int
 {
 }, g_old_term{};
@@ -102,13 +102,13 @@ std::string distributionJson(std::vector<double>& v)
 /** {"ground": {"median":..,"p95":..,"max":..}, ...} over the scans, with the
  * tree layer ("trees": per scan) last. */
 std::string stageTimesJson(const std::vector<odometry::ScanTiming>& t,
-						   std::vector<double> tree_ms)
+                           std::vector<double> tree_ms)
 {
 	using T = odometry::ScanTiming;
 	const std::pair<const char*, double T::*> stages[] = {
-		{"deskew", &T::deskew_ms},	 {"ground", &T::ground_ms},
-		{"cluster", &T::cluster_ms}, {"features", &T::features_ms},
-		{"register", &T::register_ms}, {"insert", &T::insert_ms}};
+	    {"deskew", &T::deskew_ms},     {"ground", &T::ground_ms},
+	    {"cluster", &T::cluster_ms},   {"features", &T::features_ms},
+	    {"register", &T::register_ms}, {"insert", &T::insert_ms}};
 	std::ostringstream os;
 	os << "{";
 	bool first = true;
@@ -171,14 +171,15 @@ void writeLoopClosures(const loop::BackEnd& b, const std::string& path)
 	    path,
 	    [&](std::ostream& os)
 	    {
-		os << "from_t_s,to_t_s,accepted,reason,overlap,rmse_m,chi2,"
-		      "travelled_m,x,y,z,qx,qy,qz,qw,candidate,descriptor_distance\n";
-		os << std::fixed;
-		os.precision(6);
-		for (const auto& c : b.closures())
-		{
-			const Eigen::Quaterniond q(c.T.linear());
-			os << t.at(c.from) << ',' << t.at(c.to) << ','
+		    os << "from_t_s,to_t_s,accepted,reason,overlap,rmse_m,chi2,"
+		          "travelled_m,x,y,z,qx,qy,qz,qw,candidate,descriptor_"
+		          "distance\n";
+		    os << std::fixed;
+		    os.precision(6);
+		    for (const auto& c : b.closures())
+		    {
+			    const Eigen::Quaterniond q(c.T.linear());
+			    os << t.at(c.from) << ',' << t.at(c.to) << ','
 			       << (c.accepted ? 1 : 0) << ',' << c.reason << ','
 			       << c.overlap << ',' << c.rmse_m << ',' << c.chi2 << ','
 			       << c.travelled_m << ',' << c.T.translation().x() << ','
@@ -187,8 +188,8 @@ void writeLoopClosures(const loop::BackEnd& b, const std::string& path)
 			       << q.w() << ','
 			       << (c.descriptor ? "descriptor" : "geometric") << ','
 			       << (c.descriptor ? c.descriptor_distance : 0.0) << '\n';
-		}
-	});
+		    }
+	    });
 }
 }  // namespace
 
@@ -199,7 +200,7 @@ class RawlogSource : public ObservationSource
 {
    public:
 	explicit RawlogSource(const MappingJob& job)
-		: reader_(job.rawlog_path), progress_(job.progress_tty)
+	    : reader_(job.rawlog_path), progress_(job.progress_tty)
 	{
 	}
 	mrpt::obs::CObservation::Ptr next() override { return reader_.next(); }
@@ -209,12 +210,12 @@ class RawlogSource : public ObservationSource
 		if (p.stats().scans_in == scans_seen_) return;
 		scans_seen_ = p.stats().scans_in;
 		progress_.update(p.stats().scans_mapped, reader_.fractionRead(),
-						 p.stats().dataSeconds());
+		                 p.stats().dataSeconds());
 	}
 	void finish(const MappingPipeline& p) override
 	{
 		progress_.update(p.stats().scans_mapped, reader_.fractionRead(),
-						 p.stats().dataSeconds());
+		                 p.stats().dataSeconds());
 		progress_.finish();
 	}
 	std::string describe() const override { return reader_.path(); }
@@ -235,11 +236,12 @@ class FollowedRawlogSource : public ObservationSource
 	{
 		if (follower_.gzip())
 			FS_LOG_WARN(job.rawlog_path
-						<< " is gzip-compressed: followed as its compressed "
-						   "blocks are flushed (a plain rawlog is read record "
-						   "by record)");
+			            << " is gzip-compressed: followed as its compressed "
+			               "blocks are flushed (a plain rawlog is read record "
+			               "by record)");
 	}
 	mrpt::obs::CObservation::Ptr next() override { return follower_.next(); }
+	bool live() const override { return true; }
 	void processed(const mrpt::obs::CObservation&,
 	               const MappingPipeline& p) override
 	{
@@ -284,7 +286,7 @@ MappingResult runMapping(const MappingJob& job)
 }
 
 MappingResult runMapping(const MappingJob& job, const MappingConfig& cfg,
-						 ObservationSource& source)
+                         ObservationSource& source)
 {
 	std::optional<core::Trajectory> poses;
 	if (!job.poses_path.empty())
@@ -292,16 +294,26 @@ MappingResult runMapping(const MappingJob& job, const MappingConfig& cfg,
 		poses = io::readTum(job.poses_path);
 		if (cfg.pipeline.poseSource() != PoseSource::Trajectory)
 			throw core::ConfigError(
-				"--poses given but " + job.config_path +
-				" has [pipeline] pose_source=" + cfg.pipeline.pose_source +
-				" (set pose_source=trajectory)");
+			    "--poses given but " + job.config_path +
+			    " has [pipeline] pose_source=" + cfg.pipeline.pose_source +
+			    " (set pose_source=trajectory)");
 	}
 	core::ensureDirectory(job.out_dir);
 	// A previous run killed while writing its outputs left temp files.
 	for (const auto& f : core::removeStaleTempFiles(job.out_dir))
 		FS_LOG_WARN("removed " << f
 		                       << ", left by a run killed while writing it");
-	MappingPipeline pipeline(cfg, poses);
+	// "auto" settles here, where the input is known: a recorded rawlog
+	// has its trees detected once, at the end.
+	MappingConfig run_cfg = cfg;
+	run_cfg.trees.layer_detect_during_run =
+	    cfg.trees.detectDuringRun(source.live()) ? "true" : "false";
+	if (run_cfg.trees.layer_enabled)
+		FS_LOG_INFO("tree layer: stems detected "
+		            << (run_cfg.trees.layer_detect_during_run == "true"
+		                    ? "during the run"
+		                    : "once, at the end of the run"));
+	MappingPipeline pipeline(run_cfg, poses);
 
 	MappingResult result;
 	StopSignalScope signals;
@@ -309,7 +321,7 @@ MappingResult runMapping(const MappingJob& job, const MappingConfig& cfg,
 	const double mem_period_s = cfg.pipeline.memory_report_period_s;
 	double next_mem_s = mem_period_s;
 	FS_LOG_INFO("mapping " << source.describe() << " with " << job.config_path
-						   << " -> " << job.out_dir);
+	                       << " -> " << job.out_dir);
 	while (!pipeline.reachedScanLimit())
 	{
 		if (g_stop_signal && !result.interrupted)
@@ -317,10 +329,10 @@ MappingResult runMapping(const MappingJob& job, const MappingConfig& cfg,
 			result.interrupted = true;
 			FS_LOG_WARN("signal "
 			            << g_stop_signal.load()
-								  << (source.drainOnStop()
-										  ? " received: stopping, draining the "
-											"queue, writing outputs"
-										  : " received: stopping, writing outputs"));
+			            << (source.drainOnStop()
+			                    ? " received: stopping, draining the "
+			                      "queue, writing outputs"
+			                    : " received: stopping, writing outputs"));
 			if (!source.drainOnStop()) break;
 		}
 		mrpt::obs::CObservation::Ptr obs;
@@ -333,8 +345,8 @@ MappingResult runMapping(const MappingJob& job, const MappingConfig& cfg,
 			result.input_damaged = true;
 			result.damage_message = e.what();
 			FS_LOG_ERROR(e.what() << " -- stopping here; outputs cover the "
-								  << pipeline.stats().scans_mapped
-								  << " scans mapped before the damage");
+			                      << pipeline.stats().scans_mapped
+			                      << " scans mapped before the damage");
 			break;
 		}
 		if (!obs) break;
@@ -354,14 +366,14 @@ MappingResult runMapping(const MappingJob& job, const MappingConfig& cfg,
 	{
 		result.interrupted = true;
 		FS_LOG_WARN("signal " << g_stop_signal.load()
-							  << " received: stopped, writing outputs");
+		                      << " received: stopped, writing outputs");
 	}
 	pipeline.finish();
 	source.finish(pipeline);
 	result.stats = pipeline.stats();
 	result.wall_seconds =
 	    std::chrono::duration<double>(std::chrono::steady_clock::now() - t0)
-							  .count();
+	        .count();
 	result.memory_end = sampleMemory(pipeline);
 	FS_LOG_INFO(
 	    "memory at the end of mapping: " << describeMemory(result.memory_end));
@@ -391,16 +403,17 @@ std::vector<std::string> writeOutputs(const MappingPipeline& p,
 		if (const auto g = p.estimatedGeoreference())
 		{
 			geo = *g;
-			FS_LOG_INFO("outputs georeferenced with the back-end's GNSS "
-			            "estimate: ENU at the first fix ("
-			            << geo.origin_lat_deg << ", " << geo.origin_lon_deg
-			            << ", " << geo.origin_alt_m << " m) -> UTM");
+			FS_LOG_INFO(
+			    "outputs georeferenced with the back-end's GNSS "
+			    "estimate: ENU at the first fix ("
+			    << geo.origin_lat_deg << ", " << geo.origin_lon_deg << ", "
+			    << geo.origin_alt_m << " m) -> UTM");
 		}
 	// trajectory, forest.map, trees.csv (the tree layer) and the rest.
 	const auto out = outputs::writeRunOutputs(
-		{p.trajectory(), p.forestMap(), p.outputCollector(), cfg.outputs,
-		 geo, cfg.trees, fig},
-		dir);
+	    {p.trajectory(), p.forestMap(), p.outputCollector(), cfg.outputs, geo,
+	     cfg.trees, fig},
+	    dir);
 	for (const auto& f : out.files) written.push_back(f.path);
 	const auto& col = p.outputCollector();
 
@@ -414,77 +427,77 @@ std::vector<std::string> writeOutputs(const MappingPipeline& p,
 	    {
 		    const double rt =
 		        r.wall_seconds > 0 ? s.dataSeconds() / r.wall_seconds : 0;
-		os << "{\n"
-		   << "  \"observations\": " << s.observations << ",\n"
-		   << "  \"scans_in\": " << s.scans_in << ",\n"
-		   << "  \"scans_mapped\": " << s.scans_mapped << ",\n"
-		   << "  \"scans_empty\": " << s.scans_empty << ",\n"
-		   << "  \"scans_out_of_order\": " << s.scans_out_of_order << ",\n"
+		    os << "{\n"
+		       << "  \"observations\": " << s.observations << ",\n"
+		       << "  \"scans_in\": " << s.scans_in << ",\n"
+		       << "  \"scans_mapped\": " << s.scans_mapped << ",\n"
+		       << "  \"scans_empty\": " << s.scans_empty << ",\n"
+		       << "  \"scans_out_of_order\": " << s.scans_out_of_order << ",\n"
 		       << "  \"scans_outside_poses\": " << s.scans_outside_poses
 		       << ",\n"
-		   << "  \"scans_unreadable\": " << s.scans_unreadable << ",\n"
-		   << "  \"scans_degenerate\": " << s.scans_degenerate << ",\n"
-		   << "  \"scans_unregistered\": " << s.scans_unregistered << ",\n"
-		   << "  \"scans_light\": " << s.scans_light << ",\n"
-		   << "  \"scans_imu\": " << s.scans_imu << ",\n"
-		   << "  \"imu_rejected\": " << s.imu_rejected << ",\n"
-		   << "  \"scans_duplicate\": " << s.scans_duplicate << ",\n"
-		   << "  \"points_nonfinite\": " << s.points_nonfinite << ",\n"
-		   << "  \"lidar_gaps\": " << s.lidar_gaps << ",\n"
-		   << "  \"imu_gaps\": " << s.imu_gaps << ",\n"
-		   << "  \"gnss_rejected\": " << s.gnss_rejected << ",\n"
-		   << "  \"imu\": " << s.imu << ",\n"
-		   << "  \"gnss\": " << s.gnss << ",\n"
-		   << "  \"other\": " << s.other << ",\n"
-		   << "  \"points_in\": " << s.points_in << ",\n"
-		   << "  \"data_seconds\": " << s.dataSeconds() << ",\n"
-		   << "  \"wall_seconds\": " << r.wall_seconds << ",\n"
-		   << "  \"scans_per_second\": "
-		   << (r.wall_seconds > 0 ? s.scans_mapped / r.wall_seconds : 0)
-		   << ",\n"
-		   << "  \"real_time_factor\": " << rt << ",\n"
-		   << "  \"stage_ms\": " << stageTimesJson(s.stage_ms, s.tree_ms)
-		   << ",\n"
-		   << "  \"map_edge_voxels\": " << p.forestMap().edgePointCount()
-		   << ",\n"
+		       << "  \"scans_unreadable\": " << s.scans_unreadable << ",\n"
+		       << "  \"scans_degenerate\": " << s.scans_degenerate << ",\n"
+		       << "  \"scans_unregistered\": " << s.scans_unregistered << ",\n"
+		       << "  \"scans_light\": " << s.scans_light << ",\n"
+		       << "  \"scans_imu\": " << s.scans_imu << ",\n"
+		       << "  \"imu_rejected\": " << s.imu_rejected << ",\n"
+		       << "  \"scans_duplicate\": " << s.scans_duplicate << ",\n"
+		       << "  \"points_nonfinite\": " << s.points_nonfinite << ",\n"
+		       << "  \"lidar_gaps\": " << s.lidar_gaps << ",\n"
+		       << "  \"imu_gaps\": " << s.imu_gaps << ",\n"
+		       << "  \"gnss_rejected\": " << s.gnss_rejected << ",\n"
+		       << "  \"imu\": " << s.imu << ",\n"
+		       << "  \"gnss\": " << s.gnss << ",\n"
+		       << "  \"other\": " << s.other << ",\n"
+		       << "  \"points_in\": " << s.points_in << ",\n"
+		       << "  \"data_seconds\": " << s.dataSeconds() << ",\n"
+		       << "  \"wall_seconds\": " << r.wall_seconds << ",\n"
+		       << "  \"scans_per_second\": "
+		       << (r.wall_seconds > 0 ? s.scans_mapped / r.wall_seconds : 0)
+		       << ",\n"
+		       << "  \"real_time_factor\": " << rt << ",\n"
+		       << "  \"stage_ms\": " << stageTimesJson(s.stage_ms, s.tree_ms)
+		       << ",\n"
+		       << "  \"map_edge_voxels\": " << p.forestMap().edgePointCount()
+		       << ",\n"
 		       << "  \"map_planar_voxels\": "
 		       << p.forestMap().planarPointCount() << ",\n"
 		       << "  \"map_submaps\": " << p.forestMap().submaps().size()
-		   << ",\n"
-		   << "  \"trees\": " << out.trees << ",\n"
-		   << "  \"tree_layer\": {\"total_ms\": " << tree_total_ms
-		   << ", \"share_of_wall\": "
+		       << ",\n"
+		       << "  \"trees\": " << out.trees << ",\n"
+		       << "  \"tree_layer\": {\"total_ms\": " << tree_total_ms
+		       << ", \"share_of_wall\": "
 		       << (r.wall_seconds > 0 ? tree_total_ms / (1000 * r.wall_seconds)
 		                              : 0)
-		   << ", \"finish_ms\": " << s.tree_finish_ms
+		       << ", \"finish_ms\": " << s.tree_finish_ms
 		       << ", \"detections\": "
 		       << (layer ? layer->stats().detections : 0)
-		   << ", \"detect_ms\": " << (layer ? layer->stats().detect_ms : 0)
-		   << ", \"stem_voxels\": "
-		   << (layer ? layer->stats().stored_voxels +
-		                   layer->stats().released_voxels
-		             : 0)
-		   << "},\n"
-		   << "  \"output_collect_ms_per_scan\": "
-		   << (col.scans() ? 1e3 * col.collectSeconds() / col.scans() : 0.0)
-		   << ",\n"
-		   << "  \"output_write_seconds\": " << out.seconds << ",\n"
-		   << "  \"loop\": " << loopJson(p.backEnd(), p.estimatedGeoreference())
-		   << ",\n"
-		   << "  \"keyframes\": " << out.keyframes << ",\n"
-		   << "  \"dense_points\": " << out.dense_points << ",\n"
-		   << "  \"peak_memory_mb\": " << outputs::peakMemoryMb() << ",\n"
+		       << ", \"detect_ms\": " << (layer ? layer->stats().detect_ms : 0)
+		       << ", \"stem_voxels\": "
+		       << (layer ? layer->stats().stored_voxels +
+		                       layer->stats().released_voxels
+		                 : 0)
+		       << "},\n"
+		       << "  \"output_collect_ms_per_scan\": "
+		       << (col.scans() ? 1e3 * col.collectSeconds() / col.scans() : 0.0)
+		       << ",\n"
+		       << "  \"output_write_seconds\": " << out.seconds << ",\n"
+		       << "  \"loop\": "
+		       << loopJson(p.backEnd(), p.estimatedGeoreference()) << ",\n"
+		       << "  \"keyframes\": " << out.keyframes << ",\n"
+		       << "  \"dense_points\": " << out.dense_points << ",\n"
+		       << "  \"peak_memory_mb\": " << outputs::peakMemoryMb() << ",\n"
 		       << "  \"memory\": "
 		       << memoryJson(r.memory_end, outputs::peakMemoryMb(),
 		                     r.memory_curve)
-		   << ",\n"
+		       << ",\n"
 		       << "  \"input_damaged\": "
 		       << (r.input_damaged ? "true" : "false") << ",\n"
-		   << "  \"damage\": \"" << jsonEscape(r.damage_message) << "\",\n"
-		   << "  \"interrupted\": " << (r.interrupted ? "true" : "false")
-		   << "\n"
-		   << "}\n";
-	});
+		       << "  \"damage\": \"" << jsonEscape(r.damage_message) << "\",\n"
+		       << "  \"interrupted\": " << (r.interrupted ? "true" : "false")
+		       << "\n"
+		       << "}\n";
+	    });
 	written.push_back(summary);
 	if (p.backEnd())
 	{
@@ -516,7 +529,7 @@ std::shared_ptr<map::CForestMap> loadForestMap(const std::string& path)
 	if (!m)
 		throw std::runtime_error("'" + path + "' holds a " +
 		                         obj->GetRuntimeClass()->className +
-			", not a forest_slam::map::CForestMap");
+		                         ", not a forest_slam::map::CForestMap");
 	return m;
 }
 

@@ -55,7 +55,8 @@ MappingPipeline::MappingPipeline(const MappingConfig& cfg,
 	}
 	if (cfg_.trees.layer_enabled)
 		tree_layer_ = std::make_unique<trees::TreeLayer>(
-		    cfg_.trees, cfg_.forest_map.submap_size_m);
+		    cfg_.trees, cfg_.forest_map.submap_size_m,
+		    cfg_.trees.detectDuringRun(/*live_input=*/false));
 	initBackEnd();
 }
 

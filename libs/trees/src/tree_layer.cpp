@@ -253,8 +253,9 @@ void TreeLayer::SortedVoxels::mergeIn(std::vector<Voxel>& add)
 }
 
 // ------------------------------------------------------------ TreeLayer
-TreeLayer::TreeLayer(const TreeOptions& o, double column_size_m)
-    : o_(o), column_m_(column_size_m)
+TreeLayer::TreeLayer(const TreeOptions& o, double column_size_m,
+                     bool detect_during_run)
+    : o_(o), column_m_(column_size_m), detect_during_run_(detect_during_run)
 {
 	if (o.layer_spill_to_disk) spill_ = std::make_unique<core::SpillFile>();
 }
@@ -280,12 +281,13 @@ const TreeLayer::SortedVoxels& TreeLayer::readable(Column& c,
 void TreeLayer::spillFar(const Eigen::Vector3d& sensor)
 {
 	if (!spill_) return;
-	// Beyond the reach of new points (which would not read it back, but
-	// the column would be written again at its next detection anyway).
-	// Neighbours' detections read a spilled column without keeping it.
+	// Beyond the reach of new points (which would not read it back). A
+	// column due for detection during the run stays until then (it would
+	// be written twice). Detections read a spilled column without keeping
+	// it.
 	const double far = o_.layer_max_range_m;
 	for (auto& [k, c] : cols_)
-		if (!c.dirty && c.stem.sizeInMemory() > 0 &&
+		if ((!c.dirty || !detect_during_run_) && c.stem.sizeInMemory() > 0 &&
 		    distanceToSquare(sensor.x(), sensor.y(), k.x * column_m_,
 		                     k.y * column_m_, column_m_) > far)
 			c.stem.spill(*spill_);
@@ -407,9 +409,10 @@ size_t TreeLayer::update(const Eigen::Vector3d& sensor, map::CForestMap& map)
 {
 	std::vector<ColumnKey> due;
 	for (const auto& [k, c] : cols_)
-		if (c.dirty && distanceToSquare(sensor.x(), sensor.y(), k.x * column_m_,
-		                                k.y * column_m_, column_m_) >
-		                   o_.layer_complete_distance_m)
+		if (detect_during_run_ && c.dirty &&
+		    distanceToSquare(sensor.x(), sensor.y(), k.x * column_m_,
+		                     k.y * column_m_,
+		                     column_m_) > o_.layer_complete_distance_m)
 			due.push_back(k);
 	for (const auto& k : due) detectColumn(k, map);
 	if (!due.empty()) publish(map);

@@ -60,6 +60,7 @@ class LiveSource : public pipeline::ObservationSource
 
 	mrpt::obs::CObservation::Ptr next() override;
 	bool drainOnStop() const override { return true; }
+	bool live() const override { return true; }
 	void willProcess(const mrpt::obs::CObservation& obs,
 	                 pipeline::MappingPipeline& p) override;
 	void processed(const mrpt::obs::CObservation& obs,

@@ -28,6 +28,11 @@ class ObservationSource
 	 * watch stopSignal() themselves. */
 	virtual bool drainOnStop() const { return false; }
 
+	/** True for input that arrives while it is recorded (live sensors, a
+	 * growing rawlog): the tree layer then detects stems during the run
+	 * ([trees] layer_detect_during_run = auto). */
+	virtual bool live() const { return false; }
+
 	/** Called before each observation enters the pipeline (online: light
 	 * scans while the pipeline is behind). */
 	virtual void willProcess(const mrpt::obs::CObservation& /*obs*/,

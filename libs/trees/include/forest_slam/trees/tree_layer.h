@@ -60,7 +60,11 @@ struct TreeLayerStats
 class TreeLayer
 {
    public:
-	TreeLayer(const TreeOptions& o, double column_size_m);
+	/** `detect_during_run`: update() detects the columns the sensor has
+	 * left (trees during the run); false: only finish() detects, once per
+	 * column, and update() only spills (TreeOptions::detectDuringRun). */
+	TreeLayer(const TreeOptions& o, double column_size_m,
+	          bool detect_during_run = true);
 
 	/** Adds the points (map frame, gravity-aligned, deskewed) of one scan
 	 * taken from `sensor` (map frame) at `time_s` (NaN: 0.1 s per scan
@@ -71,7 +75,9 @@ class TreeLayer
 
 	/** Detects the stems of every column with new points whose square is
 	 * farther than layer_complete_distance_m from `sensor`, and writes the
-	 * tree layer into `map`. Returns the number of columns processed. */
+	 * tree layer into `map` (not with detect_during_run false). Spills
+	 * the columns out of the sensor's reach. Returns the number of columns
+	 * detected. */
 	size_t update(const Eigen::Vector3d& sensor, map::CForestMap& map);
 	/** End of the run: detects every column with new points. */
 	size_t finish(map::CForestMap& map);
@@ -274,10 +280,12 @@ class TreeLayer
 
 	TreeOptions o_;
 	double column_m_;
+	bool detect_during_run_;
 	std::unique_ptr<core::SpillFile> spill_;  ///< layer_spill_to_disk
 	/** Column's stem voxels in memory (read back if spilled). */
 	SortedVoxels& resident(Column& c);
-	/** Spills detected columns no scan from `sensor` can reach. */
+	/** Spills the columns no scan from `sensor` can reach (detected ones
+	 * only, when detecting during the run). */
 	void spillFar(const Eigen::Vector3d& sensor);
 	/** Stem voxels of a column for reading: the column's own if in
 	 * memory, else a copy read from disk into `copy` (not kept). */

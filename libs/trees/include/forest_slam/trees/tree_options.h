@@ -2,6 +2,8 @@
 // Every parameter of the tree layer (INI section [trees]); see doc/trees.md.
 #include <mrpt/config/CLoadableOptions.h>
 
+#include <string>
+
 #include <cstdint>
 
 namespace forest_slam::trees
@@ -108,6 +110,20 @@ struct TreeOptions : public mrpt::config::CLoadableOptions
 	 * to an unnamed scratch file ($TMPDIR, else /tmp) and are read back
 	 * when needed again: memory bounded by the area near the sensor. */
 	bool layer_spill_to_disk = true;
+	/** Detect a column's stems as soon as the sensor has left it ("true":
+	 * trees during the run), or only once, at the end ("false": a
+	 * long run detected every column again on every revisit and the
+	 * final correction detected most of them once more; that was most
+	 * of the tree layer's CPU). "auto": true for live input (`online`,
+	 * `map --follow`), false for a recorded rawlog. */
+	std::string layer_detect_during_run = "auto";
+	/** layer_detect_during_run resolved for input that is (not) live. */
+	bool detectDuringRun(bool live_input) const
+	{
+		return layer_detect_during_run == "auto"
+		           ? live_input
+		           : layer_detect_during_run == "true";
+	}
 
 	void loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 	                        const std::string& section) override;
