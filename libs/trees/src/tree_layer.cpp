@@ -169,17 +169,49 @@ void TreeLayer::SortedVoxels::reload(const core::SpillFile& f)
 }
 
 TreeLayer::SortedVoxels TreeLayer::SortedVoxels::loaded(
-    const core::SpillFile* f)
+    const core::SpillFile* f, const Eigen::Vector2f& lo,
+    const Eigen::Vector2f& hi) const
 {
-	compact();
-	SortedVoxels copy(voxel_m_);
-	if (!spilled_)
+	// Cell index ranges of the box (keys hold the cell indices per axis).
+	const uint64_t m = (uint64_t(1) << 21) - 1;
+	auto cells = [&](float a, float b)
 	{
-		copy.voxels_ = voxels_;
-		return copy;
+		const float big = 1e7f;  // beyond any key: the whole axis
+		const uint64_t i0 = keyOf({std::clamp(a, -big, big), 0, 0}) >> 42;
+		const uint64_t i1 = keyOf({std::clamp(b, -big, big), 0, 0}) >> 42;
+		return std::make_pair(i0, i1);
+	};
+	const auto [x0, x1] = cells(lo.x(), hi.x());
+	const auto [y0, y1] = cells(lo.y(), hi.y());
+	auto inBox = [&](const Voxel& v)
+	{
+		const uint64_t ix = v.key >> 42, iy = (v.key >> 21) & m;
+		return ix >= x0 && ix <= x1 && iy >= y0 && iy <= y1;
+	};
+	SortedVoxels copy(voxel_m_);
+	std::vector<Voxel> added;  // in memory: all, or those added since spilled
+	for (const auto& v : voxels_)
+		if (inBox(v)) added.push_back(v);
+	for (const auto& q : pending_)
+	{
+		const uint64_t k = keyOf(q.p);
+		const Voxel v{k,     q.p - centreOf(k), q.dir, 1, q.segment, q.time,
+		              q.pass};
+		if (inBox(v)) added.push_back(v);
 	}
-	f->readVector(spill_offset_, spill_count_, copy.voxels_);
-	std::vector<Voxel> added = voxels_;
+	if (spilled_)
+	{
+		// Sorted on disk: the kept voxels stay sorted.
+		constexpr size_t kChunk = size_t(1) << 20;
+		std::vector<Voxel> chunk;
+		for (size_t at = 0; at < spill_count_; at += kChunk)
+		{
+			const size_t n = std::min(kChunk, spill_count_ - at);
+			f->readVector(spill_offset_ + at * sizeof(Voxel), n, chunk);
+			for (const auto& v : chunk)
+				if (inBox(v)) copy.voxels_.push_back(v);
+		}
+	}
 	if (!added.empty()) copy.mergeIn(added);
 	return copy;
 }
@@ -267,14 +299,18 @@ TreeLayer::SortedVoxels& TreeLayer::resident(Column& c)
 }
 
 const TreeLayer::SortedVoxels& TreeLayer::readable(Column& c,
-                                                   SortedVoxels& copy)
+                                                   SortedVoxels& copy,
+                                                   const Eigen::Vector2f& lo,
+                                                   const Eigen::Vector2f& hi)
 {
 	if (!c.stem.spilled())
 	{
 		c.stem.compact();
 		return c.stem;
 	}
-	copy = c.stem.loaded(spill_.get());
+	// A neighbour's margin strip only: a long run's column holds millions
+	// of voxels, and every detection read its eight neighbours whole.
+	copy = c.stem.loaded(spill_.get(), lo, hi);
 	return copy;
 }
 
@@ -468,7 +504,11 @@ void TreeLayer::detectColumn(const ColumnKey& k, const map::CForestMap& map)
 				if (inside(p.x(), p.y(), ground_margin))
 					ground.push_back(p.cast<double>());
 			SortedVoxels copy;
-			const auto& stem = readable(it->second, copy);
+			const auto& stem = readable(
+			    it->second, copy,
+			    Eigen::Vector2f(float(x0 - margin), float(y0 - margin)),
+			    Eigen::Vector2f(float(x0 + column_m_ + margin),
+			                    float(y0 + column_m_ + margin)));
 			stem.forEach(
 			    [&](const Eigen::Vector3f& c, const Eigen::Vector3f& d, float t)
 			    {

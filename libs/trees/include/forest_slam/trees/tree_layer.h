@@ -212,9 +212,15 @@ class TreeLayer
 		void spill(core::SpillFile& f);
 		/** Reads spilled voxels back (merging those added since). */
 		void reload(const core::SpillFile& f);
-		/** A copy of the whole set, in memory, for reading; the set stays
-		 * as it is (spilled or not). */
-		SortedVoxels loaded(const core::SpillFile* f);
+		/** A copy of the voxels whose cells are in the horizontal box [lo,
+		 * hi) [m], in memory, for reading; the set stays as it is (spilled
+		 * or not). A spilled set is read in chunks: only the box is held. */
+		SortedVoxels loaded(
+		    const core::SpillFile* f,
+		    const Eigen::Vector2f& lo = Eigen::Vector2f::Constant(
+		        -std::numeric_limits<float>::infinity()),
+		    const Eigen::Vector2f& hi = Eigen::Vector2f::Constant(
+		        std::numeric_limits<float>::infinity())) const;
 		bool spilled() const { return spilled_; }
 		size_t spilledBytes() const
 		{
@@ -288,8 +294,11 @@ class TreeLayer
 	 * only, when detecting during the run). */
 	void spillFar(const Eigen::Vector3d& sensor);
 	/** Stem voxels of a column for reading: the column's own if in
-	 * memory, else a copy read from disk into `copy` (not kept). */
-	const SortedVoxels& readable(Column& c, SortedVoxels& copy);
+	 * memory, else a copy of those in the box [lo, hi) read from disk into
+	 * `copy` (not kept). */
+	const SortedVoxels& readable(Column& c, SortedVoxels& copy,
+	                             const Eigen::Vector2f& lo,
+	                             const Eigen::Vector2f& hi);
 	std::unordered_map<ColumnKey, Column, ColumnKeyHash> cols_;
 	uint32_t next_id_ = 1;
 	bool released_ = false;  ///< releaseStemVoxels() was called
