@@ -6,7 +6,11 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <condition_variable>
+#include <exception>
+#include <mutex>
 #include <stdexcept>
+#include <thread>
 
 namespace forest_slam::trees
 {
@@ -298,16 +302,11 @@ TreeLayer::SortedVoxels& TreeLayer::resident(Column& c)
 	return c.stem;
 }
 
-const TreeLayer::SortedVoxels& TreeLayer::readable(Column& c,
-                                                   SortedVoxels& copy,
-                                                   const Eigen::Vector2f& lo,
-                                                   const Eigen::Vector2f& hi)
+const TreeLayer::SortedVoxels& TreeLayer::readable(
+    const Column& c, SortedVoxels& copy, const Eigen::Vector2f& lo,
+    const Eigen::Vector2f& hi) const
 {
-	if (!c.stem.spilled())
-	{
-		c.stem.compact();
-		return c.stem;
-	}
+	if (!c.stem.spilled() && c.stem.compacted()) return c.stem;
 	// A neighbour's margin strip only: a long run's column holds millions
 	// of voxels, and every detection read its eight neighbours whole.
 	copy = c.stem.loaded(spill_.get(), lo, hi);
@@ -450,6 +449,7 @@ size_t TreeLayer::update(const Eigen::Vector3d& sensor, map::CForestMap& map)
 		                     k.y * column_m_,
 		                     column_m_) > o_.layer_complete_distance_m)
 			due.push_back(k);
+	if (!due.empty()) compactAll();
 	for (const auto& k : due) detectColumn(k, map);
 	if (!due.empty()) publish(map);
 	spillFar(sensor);
@@ -465,21 +465,84 @@ size_t TreeLayer::finish(map::CForestMap& map)
 	std::sort(due.begin(), due.end(),
 	          [](const ColumnKey& a, const ColumnKey& b)
 	          { return a.x != b.x ? a.x < b.x : a.y < b.y; });
-	for (const auto& k : due)
+	// The end of the run detects every column (layer_detect_during_run
+	// false) with the mapping thread idle: two columns at once, unless the
+	// two together would hold more than kTwoAtOnceVoxels (each detection
+	// reads its column and its neighbours' margins). The trees are found
+	// in any order, then given their ids in `due` order: the same as one
+	// at a time.
+	compactAll();
+	constexpr size_t kTwoAtOnceVoxels = 4000000;
+	std::vector<std::vector<map::TreeRecord>> found(due.size());
+	std::vector<double> ms(due.size());
+	std::mutex mtx;
+	std::condition_variable freed;
+	size_t next = 0, running = 0, running_voxels = 0;
+	std::exception_ptr error;
+	auto work = [&]
 	{
-		detectColumn(k, map);
-		// The end of the run holds no more than the columns being read.
-		if (spill_) cols_.at(k).stem.spill(*spill_);
+		std::unique_lock<std::mutex> lock(mtx);
+		while (next < due.size() && !error)
+		{
+			const size_t i = next;
+			const size_t w = cols_.at(due[i]).stem.size();
+			if (running > 0 && running_voxels + w > kTwoAtOnceVoxels)
+			{
+				freed.wait(lock);
+				continue;
+			}
+			next++, running++, running_voxels += w;
+			lock.unlock();
+			try
+			{
+				const auto t0 = std::chrono::steady_clock::now();
+				found[i] = findTrees(due[i], map);
+				ms[i] = msSince(t0);
+			}
+			catch (...)
+			{
+				const std::lock_guard<std::mutex> g(mtx);
+				error = std::current_exception();
+			}
+			lock.lock();
+			running--, running_voxels -= w;
+			freed.notify_all();
+		}
+	};
+	{
+		std::thread second;
+		if (due.size() > 1) second = std::thread(work);
+		work();
+		if (second.joinable()) second.join();
 	}
+	if (error) std::rethrow_exception(error);
+	for (size_t i = 0; i < due.size(); i++)
+	{
+		giveTrees(due[i], std::move(found[i]), ms[i]);
+		// The end of the run holds no more than the columns being read.
+		if (spill_) cols_.at(due[i]).stem.spill(*spill_);
+	}
+	stats_.stored_voxels = 0;  // spilled and added voxels merged now
+	for (const auto& [k, c] : cols_) stats_.stored_voxels += c.stem.size();
 	publish(map);
 	return due.size();
+}
+
+void TreeLayer::compactAll()
+{
+	for (auto& [k, c] : cols_) c.stem.compact();
 }
 
 void TreeLayer::detectColumn(const ColumnKey& k, const map::CForestMap& map)
 {
 	const auto t0 = std::chrono::steady_clock::now();
-	Column& col = cols_.at(k);
-	col.dirty = false;
+	auto found = findTrees(k, map);
+	giveTrees(k, std::move(found), msSince(t0));
+}
+
+std::vector<map::TreeRecord> TreeLayer::findTrees(
+    const ColumnKey& k, const map::CForestMap& map) const
+{
 	const double x0 = k.x * column_m_, y0 = k.y * column_m_;
 	const double margin = o_.layer_margin_m;
 	// The terrain needs a wider margin than the stems: the DTM filter looks
@@ -562,6 +625,14 @@ void TreeLayer::detectColumn(const ColumnKey& k, const map::CForestMap& map)
 			    t.record.y >= y0 && t.record.y < y0 + column_m_)
 				found.push_back(t.record);
 	}
+	return found;
+}
+
+void TreeLayer::giveTrees(const ColumnKey& k,
+                          std::vector<map::TreeRecord> found, double ms)
+{
+	Column& col = cols_.at(k);
+	col.dirty = false;
 	// Keep the ids of trees seen before (online users refer to them).
 	std::vector<char> reused(col.trees.size(), 0);
 	for (auto& t : found)
@@ -583,7 +654,6 @@ void TreeLayer::detectColumn(const ColumnKey& k, const map::CForestMap& map)
 	}
 	col.trees = std::move(found);
 	stats_.detections++;
-	const double ms = msSince(t0);
 	stats_.detect_ms += ms;
 	stats_.detect_ms_each.push_back(ms);
 }

@@ -153,9 +153,12 @@ class TreeLayer
 		/** Merges the buffer if it holds more than `max_pending` points
 		 * (into the voxels in memory: a spilled set's new voxels). */
 		void compact(size_t max_pending = 0);
+		/** Voxels and buffered points (spilled: on disk plus those added
+		 * since, which may share cells with them: an upper bound). */
 		size_t size() const
 		{
-			return (spilled_ ? spill_count_ : voxels_.size()) + pending_.size();
+			return (spilled_ ? spill_count_ : 0) + voxels_.size() +
+			       pending_.size();
 		}
 		/** Calls f(centroid, mean viewing direction (not normalised), mean
 		 * time of the points) for every voxel, the time segments of a cell
@@ -231,6 +234,8 @@ class TreeLayer
 			return voxels_.capacity() * sizeof(Voxel) +
 			       pending_.capacity() * sizeof(Pending);
 		}
+		/** No points buffered (compact() has nothing to do). */
+		bool compacted() const { return pending_.empty(); }
 		/** Voxels (or points) held in memory. */
 		size_t sizeInMemory() const { return voxels_.size() + pending_.size(); }
 
@@ -296,9 +301,12 @@ class TreeLayer
 	/** Stem voxels of a column for reading: the column's own if in
 	 * memory, else a copy of those in the box [lo, hi) read from disk into
 	 * `copy` (not kept). */
-	const SortedVoxels& readable(Column& c, SortedVoxels& copy,
+	const SortedVoxels& readable(const Column& c, SortedVoxels& copy,
 	                             const Eigen::Vector2f& lo,
-	                             const Eigen::Vector2f& hi);
+	                             const Eigen::Vector2f& hi) const;
+	/** Merges every column's buffered points (before detections, which
+	 * then only read). */
+	void compactAll();
 	std::unordered_map<ColumnKey, Column, ColumnKeyHash> cols_;
 	uint32_t next_id_ = 1;
 	bool released_ = false;  ///< releaseStemVoxels() was called
@@ -310,6 +318,15 @@ class TreeLayer
 	/** Moves a column's ground cells and trees by T (not its voxels). */
 	void moveGroundAndTrees(Column& c, const Eigen::Isometry3d& T);
 	void detectColumn(const ColumnKey& k, const map::CForestMap& map);
+	/** The stems of column k on its points and its neighbours' margins
+	 * (compactAll() first); changes nothing, so finish() runs two at once.
+	 * Ids not given yet. */
+	std::vector<map::TreeRecord> findTrees(const ColumnKey& k,
+	                                       const map::CForestMap& map) const;
+	/** Column k's trees are now `found` (ids of trees seen before kept),
+	 * found in `ms`. */
+	void giveTrees(const ColumnKey& k, std::vector<map::TreeRecord> found,
+	               double ms);
 	void publish(map::CForestMap& map) const;
 };
 
