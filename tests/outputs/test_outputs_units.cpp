@@ -338,6 +338,43 @@ TEST(Octomap, StemsOccupiedSpaceBetweenThemFreeReadByOctomap)
 	EXPECT_EQ(colour->getTreeType(), "ColorOcTree");
 }
 
+// Stops and revisits: a keyframe within octomap_keyframe_spacing_m of one
+// already cast adds nothing new to the occupancy and is skipped.
+TEST(Octomap, KeyframesAtPlacesAlreadyCastAreSkipped)
+{
+	const auto dir = tempDir("octomap_spacing");
+	const Scene scene;
+	const auto three = sceneKeyframes(scene);
+	// The path again, 0.4 m aside, then the first place once more.
+	auto kfs = three;
+	for (const auto& kf : three)
+	{
+		auto again = kf;
+		again.sensor_pose.translation().y() += 0.4;
+		kfs.push_back(again);
+	}
+	kfs.push_back(three[0]);
+	const auto bt_all = (dir / "all.bt").string(),
+	           bt_spaced = (dir / "spaced.bt").string(),
+	           bt_three = (dir / "three.bt").string();
+	const auto all = outputs::writeOctomap(kfs, 0.1, 25, bt_all, "", 0);
+	const auto spaced = outputs::writeOctomap(kfs, 0.1, 25, bt_spaced, "", 0.5);
+	const auto first = outputs::writeOctomap(three, 0.1, 25, bt_three, "", 0);
+	EXPECT_EQ(all.keyframes, kfs.size());
+	EXPECT_EQ(all.keyframes_skipped, 0u);
+	EXPECT_EQ(spaced.keyframes, three.size());
+	EXPECT_EQ(spaced.keyframes_skipped, kfs.size() - three.size());
+	// Exactly the tree of the first pass; the skipped views would have
+	// filled more voxels (the scans' gaps), which is what is traded.
+	EXPECT_EQ(spaced.occupied_leaves, first.occupied_leaves);
+	EXPECT_EQ(spaced.free_leaves, first.free_leaves);
+	EXPECT_EQ(fs::file_size(bt_spaced), fs::file_size(bt_three));
+	EXPECT_GE(all.occupied_leaves, spaced.occupied_leaves);
+	// Every keyframe farther apart than the spacing is cast.
+	const auto wide = outputs::writeOctomap(kfs, 0.1, 25, bt_all, "", 0.3);
+	EXPECT_EQ(wide.keyframes, kfs.size() - 1);  // only the repeated one
+}
+
 TEST(Classification, GroundVegetationAndStemClassesAndTheDtm)
 {
 	// Ground plane z = 0.1 x, one stem at (5, 5), a shrub and a canopy.

@@ -7,8 +7,11 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <future>
 #include <stdexcept>
+#include <unordered_map>
+#include <vector>
 
 namespace forest_slam::outputs
 {
@@ -64,21 +67,63 @@ void writeColourTree(const octomap::OcTree& tree, const std::string& path)
 
 OctomapSummary writeOctomap(const Keyframes& keyframes, double resolution_m,
                             double max_range_m, const std::string& bt_path,
-                            const std::string& ot_path)
+                            const std::string& ot_path,
+                            double keyframe_spacing_m)
 {
 	return writeOctomap(
 	    keyframes, [&](size_t i) { return keyframes[i].points; }, resolution_m,
-	    max_range_m, bt_path, ot_path);
+	    max_range_m, bt_path, ot_path, keyframe_spacing_m);
 }
+
+namespace
+{
+/** The keyframes to cast, in order: each farther than `spacing_m` from
+ * every one kept before it (a grid of spacing_m cells, 27 looked up). */
+std::vector<size_t> spacedKeyframes(const Keyframes& keyframes,
+                                    double spacing_m)
+{
+	std::vector<size_t> keep;
+	std::unordered_map<uint64_t, std::vector<Eigen::Vector3d>> grid;
+	auto cell = [&](const Eigen::Vector3d& p, int dx, int dy, int dz)
+	{
+		auto axis = [&](double v, int d)
+		{ return uint64_t(int64_t(std::floor(v / spacing_m)) + d) & 0x1fffff; };
+		return (axis(p.x(), dx) << 42) | (axis(p.y(), dy) << 21) |
+		       axis(p.z(), dz);
+	};
+	for (size_t i = 0; i < keyframes.size(); i++)
+	{
+		const Eigen::Vector3d p = keyframes[i].sensor_pose.translation();
+		bool near = false;
+		for (int dx = -1; dx <= 1 && !near && spacing_m > 0; dx++)
+			for (int dy = -1; dy <= 1 && !near; dy++)
+				for (int dz = -1; dz <= 1 && !near; dz++)
+				{
+					const auto it = grid.find(cell(p, dx, dy, dz));
+					if (it == grid.end()) continue;
+					for (const auto& q : it->second)
+						if ((q - p).norm() < spacing_m) near = true;
+				}
+		if (near) continue;
+		keep.push_back(i);
+		if (spacing_m > 0) grid[cell(p, 0, 0, 0)].push_back(p);
+	}
+	return keep;
+}
+}  // namespace
 
 OctomapSummary writeOctomap(const Keyframes& keyframes,
                             const KeyframeCloudLoader& cloud_of,
                             double resolution_m, double max_range_m,
                             const std::string& bt_path,
-                            const std::string& ot_path)
+                            const std::string& ot_path,
+                            double keyframe_spacing_m)
 {
 	const auto t0 = std::chrono::steady_clock::now();
 	OctomapSummary s;
+	const std::vector<size_t> cast_kf =
+	    spacedKeyframes(keyframes, keyframe_spacing_m);
+	s.keyframes_skipped = keyframes.size() - cast_kf.size();
 	octomap::OcTree tree(resolution_m);
 	// Ray casting (the keys a keyframe's rays cross) for keyframe i+1 runs
 	// on a second thread while keyframe i's keys update the tree: each was
@@ -115,12 +160,13 @@ OctomapSummary writeOctomap(const Keyframes& keyframes,
 		return r;
 	};
 	std::future<Rays> next;
-	if (!keyframes.empty()) next = std::async(std::launch::async, cast, 0);
-	for (size_t i = 0; i < keyframes.size(); i++)
+	if (!cast_kf.empty())
+		next = std::async(std::launch::async, cast, cast_kf[0]);
+	for (size_t j = 0; j < cast_kf.size(); j++)
 	{
 		const Rays r = next.get();  // rethrows a loader error
-		if (i + 1 < keyframes.size())
-			next = std::async(std::launch::async, cast, i + 1);
+		if (j + 1 < cast_kf.size())
+			next = std::async(std::launch::async, cast, cast_kf[j + 1]);
 		// lazy_eval: inner nodes are updated once at the end.
 		for (const auto& k : r.free) tree.updateNode(k, false, true);
 		for (const auto& k : r.occupied) tree.updateNode(k, true, true);

@@ -5,24 +5,25 @@
 
 namespace forest_slam::outputs
 {
-#define FS_OUTPUT_FIELDS(X)                                                    \
-	X(trajectory_tum)                                                          \
-	X(trajectory_kitti)                                                        \
-	X(keyframes_simplemap)                                                     \
-	X(forest_map)                                                              \
-	X(las)                                                                     \
-	X(ply)                                                                     \
-	X(pcd)                                                                     \
-	X(octomap_bt) X(octomap_ot) X(trees_csv) X(trees_geojson) X(dtm_asc)       \
-	    X(report_html) X(keyframe_every_scans) X(keyframe_every_m)             \
-	        X(keyframe_voxel_m) X(keyframe_max_range_m) X(dense_voxel_m)       \
-	            X(dense_max_range_m) X(octomap_resolution_m)                   \
-	                X(octomap_max_range_m) X(dtm_cell_m) X(ground_threshold_m) \
-	                    X(low_vegetation_max_m) X(medium_vegetation_max_m)     \
-	                        X(stem_class) X(stem_margin_m)                     \
-	                            X(stem_max_height_m) X(detect_trees_if_empty)  \
-	                                X(spill_to_disk) X(dense_tile_m)           \
-	                                    X(spill_dir)
+#define FS_OUTPUT_FIELDS(X)                                                  \
+	X(trajectory_tum)                                                        \
+	X(trajectory_kitti)                                                      \
+	X(keyframes_simplemap)                                                   \
+	X(forest_map)                                                            \
+	X(las)                                                                   \
+	X(ply)                                                                   \
+	X(pcd)                                                                   \
+	X(octomap_bt)                                                            \
+	X(octomap_ot) X(trees_csv) X(trees_geojson) X(dtm_asc) X(report_html)    \
+	    X(keyframe_every_scans) X(keyframe_every_m) X(keyframe_voxel_m)      \
+	        X(keyframe_max_range_m) X(dense_voxel_m) X(dense_max_range_m)    \
+	            X(octomap_resolution_m) X(octomap_max_range_m) X(dtm_cell_m) \
+	                X(ground_threshold_m) X(low_vegetation_max_m)            \
+	                    X(medium_vegetation_max_m) X(stem_class)             \
+	                        X(stem_margin_m) X(stem_max_height_m)            \
+	                            X(detect_trees_if_empty) X(spill_to_disk)    \
+	                                X(dense_tile_m) X(spill_dir)             \
+	                                    X(octomap_keyframe_spacing_m)
 
 void OutputOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
                                        const std::string& s)
@@ -44,6 +45,8 @@ void OutputOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 	if (!(octomap_resolution_m >= 0.01))
 		bad("octomap_resolution_m must be >= 0.01");
 	if (!(octomap_max_range_m > 0)) bad("octomap_max_range_m must be > 0");
+	if (!(octomap_keyframe_spacing_m >= 0))
+		bad("octomap_keyframe_spacing_m must be >= 0");
 	if (!(dtm_cell_m > 0)) bad("dtm_cell_m must be > 0");
 	if (!(ground_threshold_m > 0)) bad("ground_threshold_m must be > 0");
 	if (!(low_vegetation_max_m > ground_threshold_m &&

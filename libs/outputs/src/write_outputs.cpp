@@ -157,11 +157,14 @@ OutputSummary writeRunOutputs(const OutputInputs& in, const std::string& dir)
 		const std::string bt = dir + "/map.bt";
 		const auto s = writeOctomap(
 		    col.keyframes(), cloud_of, o.octomap_resolution_m,
-		    o.octomap_max_range_m, bt, o.octomap_ot ? dir + "/map.ot" : "");
-		FS_LOG_INFO("OctoMap: " << s.keyframes << " keyframes, " << s.rays
-		                        << " rays, " << s.occupied_leaves
-		                        << " occupied / " << s.free_leaves
-		                        << " free leaves");
+		    o.octomap_max_range_m, bt, o.octomap_ot ? dir + "/map.ot" : "",
+		    o.octomap_keyframe_spacing_m);
+		FS_LOG_INFO("OctoMap: "
+		            << s.keyframes << " keyframes (" << s.keyframes_skipped
+		            << " skipped: within octomap_keyframe_spacing_m"
+		               " of one cast), "
+		            << s.rays << " rays, " << s.occupied_leaves
+		            << " occupied / " << s.free_leaves << " free leaves");
 		if (o.octomap_bt)
 			add("map.bt", t);
 		else

@@ -47,6 +47,12 @@ struct OutputOptions : public mrpt::config::CLoadableOptions
 	// OctoMap: ray casting from each keyframe's sensor position.
 	double octomap_resolution_m = 0.2;
 	double octomap_max_range_m = 25.0;
+	/** A keyframe within this distance of one already cast is skipped
+	 * (stops, revisits: the 58-minute run's 11 laps cast every place 11
+	 * times, 415-533 s). Less than keyframe_every_m, so the first pass
+	 * keeps every keyframe (a view a metre on fills the gaps between the
+	 * scan rings). 0: every keyframe. */
+	double octomap_keyframe_spacing_m = 0.5;
 
 	// Classification (ASPRS LAS 1.4 classes) by height above the terrain.
 	double dtm_cell_m = 0.5;            ///< dtm.asc cell
