@@ -40,6 +40,36 @@ TEST(SpillFile, BlobsReadBackAsWrittenAndNoFileLeftInTheFolder)
 	fs::remove_all(dir);
 }
 
+// A blob rewritten after every revisit: the old copies' blocks go back to
+// the file system, the other blobs read back unchanged.
+TEST(SpillFile, DiscardedBlobsGiveTheirSpaceBack)
+{
+	core::SpillFile f(fs::temp_directory_path().string());
+	const std::vector<int> keep = {1, 2, 3, 4};
+	std::vector<char> big(8 << 20, 'x');
+	const uint64_t o_keep = f.appendVector(keep);
+	uint64_t o_big = f.appendVector(big);
+	for (int rewrite = 0; rewrite < 5; rewrite++)
+	{
+		big[rewrite] = char('a' + rewrite);
+		const uint64_t o_new = f.appendVector(big);
+		f.discard(o_big, big.size());
+		o_big = o_new;
+	}
+	EXPECT_EQ(f.size(), keep.size() * sizeof(int) + 6 * big.size());
+	EXPECT_EQ(f.liveBytes(), keep.size() * sizeof(int) + big.size());
+	// ext4, xfs, tmpfs punch holes; the blocks of five copies are free.
+	EXPECT_LT(f.allocatedBytes(), 2 * big.size() + (1 << 20))
+	    << "the discarded copies still take disk space";
+	std::vector<int> k2;
+	f.readVector(o_keep, keep.size(), k2);
+	EXPECT_EQ(k2, keep);
+	std::vector<char> b2;
+	f.readVector(o_big, big.size(), b2);
+	EXPECT_EQ(b2, big);
+	EXPECT_THROW(f.discard(f.size() - 2, 4), std::logic_error);
+}
+
 TEST(SpillFile, MissingFolderIsAClearError)
 {
 	try

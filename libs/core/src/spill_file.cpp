@@ -1,6 +1,7 @@
 #include <forest_slam/core/spill_file.h>
 
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -57,6 +58,26 @@ void SpillFile::overwrite(uint64_t offset, const void* data, size_t bytes)
 	if (offset + bytes > end_)
 		throw std::logic_error("SpillFile::overwrite beyond the end");
 	writeAt(offset, data, bytes);
+}
+
+void SpillFile::discard(uint64_t offset, size_t bytes)
+{
+	if (offset + bytes > end_)
+		throw std::logic_error("SpillFile::discard beyond the end");
+	discarded_ += bytes;
+#ifdef FALLOC_FL_PUNCH_HOLE
+	// File systems without hole punching keep the blocks: only the space
+	// is lost, not data, so the error is not worth stopping a run.
+	(void)::fallocate(fd_, FALLOC_FL_PUNCH_HOLE | FALLOC_FL_KEEP_SIZE,
+	                  static_cast<off_t>(offset), static_cast<off_t>(bytes));
+#endif
+}
+
+uint64_t SpillFile::allocatedBytes() const
+{
+	struct stat st;
+	if (::fstat(fd_, &st) != 0) return end_;
+	return static_cast<uint64_t>(st.st_blocks) * 512;
 }
 
 void SpillFile::writeAt(uint64_t at, const void* data, size_t bytes)

@@ -152,8 +152,13 @@ void TreeLayer::SortedVoxels::spill(core::SpillFile& f)
 	}
 	if (changed_)
 	{
+		// The copy on disk is out of date: its space goes back.
+		const uint64_t old_offset = spill_offset_;
+		const size_t old_count = on_disk_ ? spill_count_ : 0;
 		spill_offset_ = f.appendVector(voxels_);
 		spill_count_ = voxels_.size();
+		if (old_count > 0) f.discard(old_offset, old_count * sizeof(Voxel));
+		on_disk_ = true;
 	}
 	std::vector<Voxel>().swap(voxels_);
 	spilled_ = true;

@@ -28,6 +28,12 @@ class SpillFile
 	void read(uint64_t offset, void* data, size_t bytes) const;
 	/** Replaces bytes already written (same length, in place). */
 	void overwrite(uint64_t offset, const void* data, size_t bytes);
+	/** The blob at [offset, offset + bytes) is not read again: its disk
+	 * blocks go back to the file system (a hole is punched; the file keeps
+	 * its length, offsets stay valid). A blob written again after each
+	 * revisit otherwise left every old copy on disk: the 58-minute run's
+	 * tree layer filled a 50 GB disk. */
+	void discard(uint64_t offset, size_t bytes);
 
 	template <class T>
 	uint64_t appendVector(const std::vector<T>& v)
@@ -46,8 +52,12 @@ class SpillFile
 		read(offset, v.data(), n * sizeof(T));
 	}
 
-	/** Bytes written so far (the file only grows). */
+	/** Bytes written so far (the file's length only grows). */
 	uint64_t size() const { return end_; }
+	/** Bytes written and not discarded. */
+	uint64_t liveBytes() const { return end_ - discarded_; }
+	/** Disk space the file takes now (its allocated blocks). */
+	uint64_t allocatedBytes() const;
 	const std::string& dir() const { return dir_; }
 
    private:
@@ -55,6 +65,7 @@ class SpillFile
 	std::string dir_;
 	int fd_ = -1;
 	uint64_t end_ = 0;
+	uint64_t discarded_ = 0;
 };
 
 }  // namespace forest_slam::core

@@ -131,6 +131,12 @@ class TreeLayer
 	size_t memoryBytes() const;
 	/** Bytes of stem-band voxels now on disk. */
 	size_t spilledBytes() const;
+	/** Disk space the layer's scratch file takes (0 without one): old
+	 * copies of rewritten columns are given back (SpillFile::discard). */
+	size_t spillFileBytes() const
+	{
+		return spill_ ? spill_->allocatedBytes() : 0;
+	}
 
    private:
 	/** Stem-band voxels (exact centroids, like map::VoxelCloud) as a sorted
@@ -205,6 +211,7 @@ class TreeLayer
 			std::vector<Pending>().swap(pending_);
 			spilled_ = false;
 			changed_ = true;
+			on_disk_ = false;
 			spill_count_ = 0;
 		}
 		/** Moves the voxels to `f` (compact() first); a set read back and
@@ -264,7 +271,8 @@ class TreeLayer
 		std::vector<Voxel> voxels_;
 		std::vector<Pending> pending_;
 		bool spilled_ = false;
-		bool changed_ = true;  ///< since last written to the spill file
+		bool changed_ = true;   ///< since last written to the spill file
+		bool on_disk_ = false;  ///< spill_offset_/count_ hold a copy
 		uint64_t spill_offset_ = 0;
 		size_t spill_count_ = 0;
 		uint64_t keyOf(const Eigen::Vector3f& p) const;
