@@ -65,12 +65,7 @@ void TreeLayer::SortedVoxels::compact(size_t max_pending)
 	if (pending_.size() <= max_pending || pending_.empty()) return;
 	std::vector<Voxel> add;
 	add.reserve(pending_.size());
-	for (const auto& q : pending_)
-	{
-		const uint64_t k = keyOf(q.p);
-		add.push_back(
-		    {k, q.p - centreOf(k), q.dir, 1, q.segment, q.time, q.pass});
-	}
+	for (const auto& q : pending_) add.push_back(voxelOf(q));
 	pending_.clear();
 	pending_.shrink_to_fit();
 	mergeIn(add);
@@ -203,9 +198,7 @@ TreeLayer::SortedVoxels TreeLayer::SortedVoxels::loaded(
 		if (inBox(v)) added.push_back(v);
 	for (const auto& q : pending_)
 	{
-		const uint64_t k = keyOf(q.p);
-		const Voxel v{k,     q.p - centreOf(k), q.dir, 1, q.segment, q.time,
-		              q.pass};
+		const Voxel v = voxelOf(q);
 		if (inBox(v)) added.push_back(v);
 	}
 	if (spilled_)

@@ -281,6 +281,12 @@ class TreeLayer
 		/** Sorts voxels_ in place and sums equal (key, pass, segment). */
 		void sortAndCombine();
 		Eigen::Vector3f centreOf(uint64_t key) const;
+		/** A buffered point as a one-point voxel. */
+		Voxel voxelOf(const Pending& q) const
+		{
+			const uint64_t k = keyOf(q.p);
+			return {k, q.p - centreOf(k), q.dir, 1, q.segment, q.time, q.pass};
+		}
 		Eigen::Vector3f centroid(const Voxel& v) const
 		{
 			return centreOf(v.key) + v.sum / float(v.count);
