@@ -56,6 +56,16 @@ std::vector<Eigen::Vector3f> scan(const std::vector<Stem>& stems,
 		}
 	return pts;
 }
+/** The tree of `m` nearest to stem `t` (m holds at least one). */
+const map::TreeRecord& nearestTree(const map::CForestMap& m, const Stem& t)
+{
+	const map::TreeRecord* best = nullptr;
+	for (const auto& r : m.trees())
+		if (!best || std::hypot(r.x - t.x, r.y - t.y) <
+		                 std::hypot(best->x - t.x, best->y - t.y))
+			best = &r;
+	return *best;
+}
 }  // namespace
 
 TEST(TreeLayer, ColumnsDetectedAsTheSensorLeavesThem)
@@ -86,11 +96,7 @@ TEST(TreeLayer, ColumnsDetectedAsTheSensorLeavesThem)
 	ASSERT_EQ(m.trees().size(), stems.size());
 	for (const auto& t : stems)
 	{
-		const map::TreeRecord* best = nullptr;
-		for (const auto& r : m.trees())
-			if (!best || std::hypot(r.x - t.x, r.y - t.y) <
-			                 std::hypot(best->x - t.x, best->y - t.y))
-				best = &r;
+		const map::TreeRecord* best = &nearestTree(m, t);
 		EXPECT_LT(std::hypot(best->x - t.x, best->y - t.y), 0.02) << t.x;
 		EXPECT_NEAR(best->dbh_m, 2 * t.r, 0.01) << t.x;
 		EXPECT_NEAR(best->z_ground, ground(t.x, t.y), 0.1) << t.x;
@@ -239,16 +245,7 @@ TEST(TreeLayer, DetectionOnceAtTheEndFindsTheSameTrees)
 	ASSERT_EQ(m_during.trees().size(), stems.size());
 	for (const auto& t : stems)
 	{
-		auto nearest = [&](const map::CForestMap& m)
-		{
-			const map::TreeRecord* best = nullptr;
-			for (const auto& r : m.trees())
-				if (!best || std::hypot(r.x - t.x, r.y - t.y) <
-				                 std::hypot(best->x - t.x, best->y - t.y))
-					best = &r;
-			return *best;
-		};
-		const auto a = nearest(m_during), b = nearest(m_end);
+		const auto &a = nearestTree(m_during, t), &b = nearestTree(m_end, t);
 		EXPECT_LT(std::hypot(b.x - t.x, b.y - t.y), 0.02) << t.x;
 		EXPECT_NEAR(b.dbh_m, 2 * t.r, 0.01) << t.x;
 		EXPECT_NEAR(a.dbh_m, b.dbh_m, 1e-5) << t.x;
@@ -300,12 +297,8 @@ TEST(TreeLayer, SegmentShiftsAbsorbAPoseJump)
 		double max_err = 0;
 		for (const auto& t : stems)
 		{
-			const map::TreeRecord* best = nullptr;
-			for (const auto& r : m.trees())
-				if (!best || std::hypot(r.x - t.x, r.y - t.y) <
-				                 std::hypot(best->x - t.x, best->y - t.y))
-					best = &r;
-			max_err = std::max(max_err, std::abs(best->dbh_m - 2 * t.r));
+			max_err =
+			    std::max(max_err, std::abs(nearestTree(m, t).dbh_m - 2 * t.r));
 		}
 		std::printf(
 		    "pose jump 4 cm, dbh_segment_scans %d: max DBH error %.1f mm\n",
