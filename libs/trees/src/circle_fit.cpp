@@ -187,7 +187,7 @@ bool refineCircleGeometric(const Points2D& p, Circle& c, double min_scale_m,
 				x[2] = std::abs(x[2]);
 				lambda = std::max(lambda / 10, 1e-9);
 				improved = true;
-				if (dx < 1e-9) it = max_iterations;
+				if (dx < 1e-6) it = max_iterations;
 			}
 			else
 				lambda *= 10;
