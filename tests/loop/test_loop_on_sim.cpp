@@ -12,7 +12,6 @@
 // stem points lie on the ground-truth stems. And GNSS: the tiny loop with
 // fixes of 0.3 m and a 15 m jump; the map->ENU heading, the trees' lat/lon
 // against the GT, the jump dropped without bending the map.
-#include <GeographicLib/LocalCartesian.hpp>
 #include <forest_slam/core/trajectory.h>
 #include <forest_slam/io/las.h>
 #include <forest_slam/io/tum.h>
@@ -21,6 +20,7 @@
 #include <json/json.h>
 #include <sys/wait.h>
 #include <unistd.h>
+#include <GeographicLib/LocalCartesian.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -201,10 +201,10 @@ class LoopOnSim : public ::testing::Test
 	{
 		ASSERT_FALSE(ini_text.empty());
 		std::ofstream(d + "/" + sim + ".ini") << ini_text;
-		ASSERT_EQ(run(bin + "/forest-sim --config " + d + "/" + sim +
-		              ".ini --out " + d + "/" + sim + " > " + d + "/" + sim +
-		              ".log 2>&1"),
-		          0)
+		ASSERT_EQ(
+		    run(bin + "/forest-sim --config " + d + "/" + sim + ".ini --out " +
+		        d + "/" + sim + " > " + d + "/" + sim + ".log 2>&1"),
+		    0)
 		    << "see " << d << "/" << sim << ".log";
 	}
 	/** forest-slam map of d/`sim`/run.rawlog into d/`name`. */
@@ -486,24 +486,27 @@ TEST_F(LoopOnSim, GnssGeoreferencesTheTreesAndDropsAJump)
 			double e, n, u;
 			enu.Forward(std::stod(t.at("lat_deg")), std::stod(t.at("lon_deg")),
 			            h0, e, n, u);
-			f.tree_err_m.push_back(std::hypot(e - (c * best->x - sn * best->y),
-			                                  n - (sn * best->x + c * best->y)));
+			f.tree_err_m.push_back(
+			    std::hypot(e - (c * best->x - sn * best->y),
+			               n - (sn * best->x + c * best->y)));
 		}
 		std::sort(f.tree_err_m.begin(), f.tree_err_m.end());
 		f.ate_aligned_m =
-		    traj(name, name == "gnss" ? "sim" : "sim_jump")["ate"]["aligned_se3"]
-		                                                    ["trans_m"]["rmse"]
-		                                                        .asDouble();
-		const auto median = f.tree_err_m.empty()
-		                        ? 1e9
-		                        : f.tree_err_m[f.tree_err_m.size() / 2];
+		    traj(name,
+		         name == "gnss"
+		             ? "sim"
+		             : "sim_jump")["ate"]["aligned_se3"]["trans_m"]["rmse"]
+		        .asDouble();
+		const auto median =
+		    f.tree_err_m.empty() ? 1e9 : f.tree_err_m[f.tree_err_m.size() / 2];
 		std::cout << name << ": " << f.loop["gnss_fixes"] << " fixes, "
 		          << f.loop["gnss_outliers"] << " outliers; map->ENU yaw "
 		          << f.yaw_err_deg << " deg from the GT; "
 		          << f.tree_err_m.size() << " trees georeferenced, median "
 		          << median << " m, worst "
 		          << (f.tree_err_m.empty() ? 1e9 : f.tree_err_m.back())
-		          << " m from the GT; ATE aligned " << f.ate_aligned_m << " m\n";
+		          << " m from the GT; ATE aligned " << f.ate_aligned_m
+		          << " m\n";
 		return f;
 	};
 	const Figures clean = figures("gnss"), jump = figures("gnss_jump");

@@ -719,7 +719,14 @@ std::vector<DetectedTree> detectTrees(
 			sp.resize(w), sd.resize(w), ss.resize(w);
 			const auto g = fitDbhSegments(sp, sd, ss, f.circle, gate, o,
 			                              fo.min_radius_m, fo.max_radius_m);
-			if (g.ok) f = g;
+			// Where each segment sees one side of the stem, its shift towards
+			// its sensor and a larger radius fit alike (only the shift prior
+			// holds them): the multi-view circle is taken only for a stem
+			// whose single circle is blurred (fit RMSE above good_rmse_m),
+			// and not if it sees less of the stem than the single circle.
+			if (g.ok && f.rmse_m > o.good_rmse_m &&
+			    g.arc_coverage_deg >= 0.8 * f.arc_coverage_deg)
+				f = g;
 		}
 		if (f.ok)
 		{
