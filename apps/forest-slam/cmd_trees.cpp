@@ -80,6 +80,8 @@ int cmdTrees(const std::vector<std::string>& args, const char* usage)
 	    "min_tree_points, %zu duplicates\n",
 	    st.rejected_short, st.rejected_shape, st.rejected_points,
 	    st.rejected_duplicate);
+	std::printf("DBH from the solid-ring fit (foliage around the stem): %zu\n",
+	            st.solid_rings);
 	if (records.empty())
 		std::printf("trees: 0\n");
 	else

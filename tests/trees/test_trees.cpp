@@ -325,6 +325,44 @@ TEST(CircleFit, FullArcAndBranchStub)
 	          0.01);  // the stub does pull a plain fit
 }
 
+// A stem inside a shrub: foliage points all around it, outside its ring
+// (the stem is solid). The robust fit takes the foliage into a larger
+// ring; the solid-ring fit finds the stem. On a clean ring it changes
+// nothing that matters.
+TEST(CircleFit, SolidRingInsideFoliage)
+{
+	std::mt19937 rng(11);
+	const double r = 0.15;
+	auto p = arc(rng, {0.3, -0.2}, r, 0, 360, 400, 0.015);
+	const auto clean = fitCircleRobust(p, opts());
+	ASSERT_TRUE(clean.ok);
+	const Circle clean_solid = fitSolidRing(p, clean.circle, 0.03, 500, 1);
+	EXPECT_NEAR(clean_solid.radius_m, clean.circle.radius_m, 0.002);
+	// Foliage: 1000 points uniform over the annulus [r, r + 0.3 m].
+	std::uniform_real_distribution<double> ang(0, 2 * M_PI), u(0, 1);
+	for (int i = 0; i < 1000; i++)
+	{
+		const double a = ang(rng),
+		             d = std::sqrt(r * r +
+		                           u(rng) * ((r + 0.3) * (r + 0.3) - r * r));
+		p.emplace_back(0.3 + d * std::cos(a), -0.2 + d * std::sin(a));
+	}
+	const auto robust = fitCircleRobust(p, opts());
+	ASSERT_TRUE(robust.ok);
+	const Circle solid = fitSolidRing(p, robust.circle, 0.03, 500, 1);
+	std::printf(
+	    "stem r %.0f mm in foliage: robust fit %.1f mm, solid ring "
+	    "%.1f mm (centre off by %.1f mm)\n",
+	    1e3 * r, 1e3 * robust.circle.radius_m, 1e3 * solid.radius_m,
+	    1e3 * (solid.centre - Eigen::Vector2d(0.3, -0.2)).norm());
+	EXPECT_GT(robust.circle.radius_m, r + 0.01);  // the foliage does pull
+	EXPECT_NEAR(solid.radius_m, r, 0.005);
+	EXPECT_LT((solid.centre - Eigen::Vector2d(0.3, -0.2)).norm(), 0.005);
+	// Deterministic for a seed.
+	const Circle again = fitSolidRing(p, robust.circle, 0.03, 500, 1);
+	EXPECT_EQ(again.radius_m, solid.radius_m);
+}
+
 TEST(OutlierFilter, RemovesScatteredPointsKeepsTheStem)
 {
 	std::mt19937 rng(3);

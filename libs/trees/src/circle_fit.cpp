@@ -497,6 +497,62 @@ CircleFitResult fitCircleRobust(const Points2D& p, const CircleFitOptions& o)
 	return evaluateCircle(p, res.circle, o);
 }
 
+namespace
+{
+/** fitSolidRing's score: ring points minus points inside the solid stem. */
+double solidRingScore(const Points2D& p, const Circle& c, double band_m)
+{
+	double s = 0;
+	for (const auto& q : p)
+	{
+		const double r = (q - c.centre).norm() - c.radius_m;
+		if (std::abs(r) < band_m)
+			s += 1 - (r / band_m) * (r / band_m);
+		else if (r < 0)
+			s -= 1;
+	}
+	return s;
+}
+}  // namespace
+
+Circle fitSolidRing(const Points2D& p, const Circle& start, double band_m,
+                    int iterations, unsigned seed)
+{
+	if (p.size() < 3 || !(band_m > 0)) return start;
+	std::mt19937 rng(seed);
+	std::uniform_int_distribution<size_t> pick(0, p.size() - 1);
+	Circle best = start;
+	double best_score = solidRingScore(p, start, band_m);
+	for (int it = 0; it < iterations; it++)
+	{
+		Circle c;
+		if (!circleThrough3(p[pick(rng)], p[pick(rng)], p[pick(rng)], c))
+			continue;
+		// Foliage only makes a ring larger, and the stem is where the
+		// start is.
+		if (c.radius_m > 1.05 * start.radius_m ||
+		    c.radius_m < 0.4 * start.radius_m ||
+		    (c.centre - start.centre).norm() > start.radius_m)
+			continue;
+		const double s = solidRingScore(p, c, band_m);
+		if (s > best_score) best_score = s, best = c;
+	}
+	if (best_score <= solidRingScore(p, start, band_m)) return start;
+	for (int round = 0; round < 5; round++)
+	{
+		Points2D ring;
+		for (const auto& q : p)
+			if (std::abs((q - best.centre).norm() - best.radius_m) < band_m)
+				ring.push_back(q);
+		Circle c = best;
+		if (ring.size() < 10 || !fitCircleKasa(ring, c) ||
+		    !refineCircleGeometric(ring, c))
+			break;
+		best = c;
+	}
+	return best;
+}
+
 CircleFitResult evaluateCircle(const Points2D& p, const Circle& c,
                                const CircleFitOptions& o)
 {

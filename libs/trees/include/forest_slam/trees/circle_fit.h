@@ -111,6 +111,18 @@ bool refineCircleSegments(const Points2D& p, const Points2D& dir,
                           Points2D* shifts = nullptr,
                           double min_scale_m = 0.002, int max_iterations = 50);
 
+/** A stem is solid: foliage around it (a shrub at its foot) puts points
+ * outside its ring, never inside, and a robust fit takes that foliage into
+ * a ring too large. This fit scores circles by the points within `band_m`
+ * of them (weight 1 - (r/band)²) minus one per point farther than `band_m`
+ * inside, over `start` and `iterations` 3-point samples (radius 0.4 to
+ * 1.05 × start's, centre within start's radius of start's), then refines
+ * the best on the points within `band_m` (Kåsa + refineCircleGeometric,
+ * five rounds). Returns `start` unchanged if nothing scores better.
+ * Deterministic for a given `seed`. */
+Circle fitSolidRing(const Points2D& p, const Circle& start, double band_m,
+                    int iterations, unsigned seed);
+
 /** Degrees of the circle seen by `p`: bins of `bin_deg` holding a point
  * within `max_residual_m` of the circle. */
 double arcCoverageDeg(const Points2D& p, const Circle& c, double max_residual_m,

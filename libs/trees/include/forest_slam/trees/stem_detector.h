@@ -53,6 +53,7 @@ struct TreeDetectionStats
 	size_t slices = 0, slice_clusters = 0, sections = 0, chains = 0;
 	size_t rejected_short = 0, rejected_shape = 0, rejected_points = 0,
 	       rejected_duplicate = 0;
+	size_t solid_rings = 0;  ///< DBH circles taken from fitSolidRing
 };
 
 /** Points near breast height kept per time segment of a SLAM run (the
