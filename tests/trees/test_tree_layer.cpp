@@ -264,6 +264,30 @@ TEST(TreeOptions, DetectDuringRunResolvesAutoByInput)
 	EXPECT_FALSE(o.detectDuringRun(true));
 }
 
+namespace
+{
+/** Drives past `stems` along y = 0 (x = 5..60 m, one scan per metre) into
+ * a layer with options `o`, then finish(): the trees land in `m`. From
+ * x = `jump_at_x` on, the poses are `jump_m` off towards -x. */
+void drivePastStems(const TreeOptions& o, const std::vector<Stem>& stems,
+                    map::CForestMap& m, double jump_at_x = 1e9,
+                    float jump_m = 0)
+{
+	TreeLayer layer(o, 20.0);
+	std::mt19937 rng(5);
+	for (double x = 5; x <= 60; x += 1.0)
+	{
+		const Eigen::Vector3d s(x, 0, ground(x, 0) + 1.5);
+		auto pts = scan(stems, s, rng);
+		const Eigen::Vector3f jump(x >= jump_at_x ? -jump_m : 0.f, 0, 0);
+		for (auto& p : pts) p += jump;
+		layer.addScan(pts, s + jump.cast<double>());
+		layer.update(s, m);
+	}
+	layer.finish(m);
+}
+}  // namespace
+
 // Multi-view DBH (dbh_segment_scans > 0): a pose error that jumps by 4 cm
 // halfway along the path doubles the rings of the stems seen before and
 // after it; with the breast-height band kept per time segment each segment
@@ -282,20 +306,9 @@ TEST(TreeLayer, SegmentShiftsAbsorbAPoseJump)
 		// One range class: the near classes alone can leave the segment
 		// that spans the jump (two rings) dominant.
 		o.dbh_range_step_m = 0;
-		TreeLayer layer(o, 20.0);
 		map::CForestMap m;
-		std::mt19937 rng(5);
-		for (double x = 5; x <= 60; x += 1.0)
-		{
-			const Eigen::Vector3d s(x, 0, ground(x, 0) + 1.5);
-			auto pts = scan(stems, s, rng);
-			// From x = 28 on the poses are 4 cm off, towards -x.
-			const Eigen::Vector3f jump(x >= 28 ? -0.04f : 0.f, 0, 0);
-			for (auto& p : pts) p += jump;
-			layer.addScan(pts, s + jump.cast<double>());
-			layer.update(s, m);
-		}
-		layer.finish(m);
+		// From x = 28 on the poses are 4 cm off, towards -x.
+		drivePastStems(o, stems, m, 28, 0.04f);
 		ASSERT_EQ(m.trees().size(), stems.size()) << segments;
 		double max_err = 0;
 		for (const auto& t : stems)
@@ -326,16 +339,8 @@ TEST(TreeLayer, SegmentFitLeavesSharpStemsAlone)
 		TreeOptions o;
 		o.dbh_segment_scans = k == 0 ? 0 : 5;
 		o.dbh_range_step_m = 0;
-		TreeLayer layer(o, 20.0);
 		map::CForestMap m;
-		std::mt19937 rng(5);
-		for (double x = 5; x <= 60; x += 1.0)
-		{
-			const Eigen::Vector3d s(x, 0, ground(x, 0) + 1.5);
-			layer.addScan(scan(stems, s, rng), s);
-			layer.update(s, m);
-		}
-		layer.finish(m);
+		drivePastStems(o, stems, m);
 		ASSERT_EQ(m.trees().size(), stems.size()) << k;
 		for (const auto& t : stems) dbh[k].push_back(nearestTree(m, t).dbh_m);
 	}
