@@ -16,6 +16,11 @@ namespace forest_slam::trees
 {
 namespace
 {
+/** Two columns are detected (finish) or moved (correct) at once unless
+ * they hold more stem voxels than this together (memory at the end of a
+ * long run). */
+constexpr size_t kTwoAtOnceVoxels = 4000000;
+
 /** findTrees' per-thread buffers. */
 struct ColumnScratch
 {
@@ -494,7 +499,6 @@ size_t TreeLayer::finish(map::CForestMap& map)
 	// in any order, then given their ids in `due` order: the same as one
 	// at a time.
 	compactAll();
-	constexpr size_t kTwoAtOnceVoxels = 4000000;
 	std::vector<std::vector<map::TreeRecord>> found(due.size());
 	std::vector<double> ms(due.size());
 	std::mutex mtx;
@@ -729,29 +733,71 @@ size_t TreeLayer::correct(
 		throw std::logic_error("TreeLayer::correct after releaseStemVoxels");
 	const double t0 = std::isfinite(t0_s_) ? t0_s_ : 0.0;
 	const float rigid_m = float(0.5 * o_.layer_voxel_m);
-	size_t redetect = 0;
-	for (const auto& k : columns())
+	// Columns are moved two at a time (the end of a run waited seconds for
+	// this on one core), unless the two would hold more than
+	// kTwoAtOnceVoxels; the spill file and the counts are shared (mtx).
+	const std::vector<ColumnKey> keys = columns();
+	size_t redetect = 0, next = 0, running = 0, running_voxels = 0;
+	std::mutex mtx;
+	std::condition_variable freed;
+	std::exception_ptr error;
+	auto work = [&]
 	{
-		Column& c = cols_.at(k);
-		const Eigen::Isometry3d T = of_column(k);
-		const Eigen::Isometry3f Tf = T.cast<float>();
-		SortedVoxels& stem = resident(c);
-		stats_.stored_voxels -= stem.size();
-		const float worst = stem.transformByTime(
-		    [&](float t) { return at_time(t0 + double(t)); }, Tf, in_run);
-		stats_.stored_voxels += stem.size();
-		moveGroundAndTrees(c, T);
-		// Passes that disagreed (or points off the column's correction by
-		// more than half a voxel): the stems were found on blurred rings.
-		if (worst > rigid_m)
+		std::unique_lock<std::mutex> lock(mtx);
+		while (next < keys.size() && !error)
 		{
-			c.dirty = true;
-			redetect++;
+			Column& c = cols_.at(keys[next]);
+			const size_t w = c.stem.size();
+			if (running > 0 && running_voxels + w > kTwoAtOnceVoxels)
+			{
+				freed.wait(lock);
+				continue;
+			}
+			const ColumnKey k = keys[next++];
+			running++, running_voxels += w;
+			lock.unlock();
+			try
+			{
+				const Eigen::Isometry3d T = of_column(k);
+				SortedVoxels& stem = resident(c);  // reads only
+				const size_t before = stem.size();
+				const float worst = stem.transformByTime(
+				    [&](float t) { return at_time(t0 + double(t)); },
+				    T.cast<float>(), in_run);
+				moveGroundAndTrees(c, T);
+				stem.compact();
+				lock.lock();
+				stats_.stored_voxels += stem.size();
+				stats_.stored_voxels -= before;
+				// Passes that disagreed (or points off the column's
+				// correction by more than half a voxel): the stems were
+				// found on blurred rings.
+				if (worst > rigid_m)
+				{
+					c.dirty = true;
+					redetect++;
+				}
+				// finish() reads back the columns it detects and their
+				// neighbours only: the corrected whole does not stay in
+				// memory at once.
+				if (spill_) c.stem.spill(*spill_);
+			}
+			catch (...)
+			{
+				if (!lock.owns_lock()) lock.lock();
+				error = std::current_exception();
+			}
+			running--, running_voxels -= w;
+			freed.notify_all();
 		}
-		// finish() reads back the columns it detects and their neighbours
-		// only: the corrected whole does not stay in memory at once.
-		if (spill_) c.stem.spill(*spill_);
+	};
+	{
+		std::thread second;
+		if (keys.size() > 1) second = std::thread(work);
+		work();
+		if (second.joinable()) second.join();
 	}
+	if (error) std::rethrow_exception(error);
 	pass_ = 0;
 	publish(map);
 	return redetect;
