@@ -1,12 +1,11 @@
 #include <forest_slam/cluster/hierarchical_kmeans.h>
 #include <forest_slam/core/config.h>
+#include <forest_slam/core/parallel_for.h>
 
 #include <algorithm>
-#include <atomic>
 #include <cmath>
 #include <limits>
 #include <numeric>
-#include <thread>
 
 #if defined(__SSE2__)
 #include <emmintrin.h>
@@ -328,8 +327,8 @@ void splitDown(Points& P, const Range& root, const ClusterOptions& opts,
 	}
 }
 
-/** Fewer points than this are split on the caller's thread only: a thread
- * costs tens of microseconds, the split of a small scan about as much. */
+/** Fewer points than this are split on the caller's thread only: waking a
+ * helper costs microseconds, the split of a small scan not much more. */
 constexpr size_t kParallelPoints = 4096;
 }  // namespace
 
@@ -381,22 +380,19 @@ ClusterLabels hierarchicalKMeans(const std::vector<Eigen::Vector3f>& pts,
 		for (size_t g = 0, s = 0; g < bounds.size(); s = bounds[g++])
 			groups.push_back({s, bounds[g], boxes[g]});
 		std::vector<Leaves> part(groups.size());
-		std::atomic<size_t> next{0};
-		auto work = [&](SplitScratch& S)
-		{
-			for (size_t g; (g = next.fetch_add(1)) < groups.size();)
-				splitDown(P, groups[g], opts, S, part[g]);
-		};
-		const int extra = std::min<int>(opts.threads, groups.size()) - 1;
-		std::vector<SplitScratch> extra_scratch(std::max(0, extra));
-		std::vector<std::thread> pool;
-		for (int t = 0; t < extra; t++)
-		{
-			extra_scratch[t].resize(N);
-			pool.emplace_back(work, std::ref(extra_scratch[t]));
-		}
-		work(scratch);
-		for (auto& th : pool) th.join();
+		const int workers = std::min<int>(opts.threads, groups.size());
+		std::vector<SplitScratch> extra_scratch(std::max(0, workers - 1));
+		std::vector<char> sized(extra_scratch.size(), 0);
+		core::parallelRanges(groups.size(), workers, 1,
+		                     [&](size_t b, size_t e, int w)
+		                     {
+			                     SplitScratch& S =
+			                         w == 0 ? scratch : extra_scratch[w - 1];
+			                     if (w > 0 && !sized[w - 1])
+				                     S.resize(N), sized[w - 1] = 1;
+			                     for (size_t g = b; g < e; g++)
+				                     splitDown(P, groups[g], opts, S, part[g]);
+		                     });
 		// A stack pops the last group first.
 		for (size_t g = groups.size(); g-- > 0;)
 			leaves.insert(leaves.end(), part[g].begin(), part[g].end());

@@ -1,11 +1,10 @@
 #include <forest_slam/core/config.h>
+#include <forest_slam/core/parallel_for.h>
 #include <forest_slam/odometry/feature_registration.h>
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
-#include <atomic>
 #include <cmath>
-#include <thread>
 
 namespace forest_slam::odometry
 {
@@ -140,26 +139,6 @@ bool FeatureTarget::matchLine(const Eigen::Vector3f& x, double gate,
 namespace
 {
 /** A residual row: source point (sensor frame) and its plane (map frame). */
-/** fn(0..n-1) on `threads` threads (the caller's and threads-1 short-lived
- * ones) taking chunks from a shared counter. Plain threads, not OpenMP:
- * OpenMP's spinning workers doubled the CPU time on a loaded machine. */
-template <class F>
-void parallelChunks(int n, int threads, const F& fn)
-{
-	constexpr int chunk = 256;
-	std::atomic<int> next{0};
-	auto work = [&]
-	{
-		for (int b; (b = next.fetch_add(chunk)) < n;)
-			for (int i = b, e = std::min(n, b + chunk); i < e; i++) fn(i);
-	};
-	const int extra = std::min(threads, (n + chunk - 1) / chunk) - 1;
-	std::vector<std::thread> pool;
-	for (int t = 0; t < extra; t++) pool.emplace_back(work);
-	work();
-	for (auto& th : pool) th.join();
-}
-
 struct Row
 {
 	Eigen::Vector3d p;
@@ -356,10 +335,13 @@ RegistrationResult registerFeatures(
 		                                             o.rematch_distance_m)
 		                        : -1.f;
 		searched_gate = gate;
-		parallelChunks(
-		    np_src + ne_src, o.threads,
-		    [&](int i)
+		// Chunks of 32 features (~50 us of k-NN): the helper thread, woken
+		// while the caller starts, still gets its share of ~1000 features.
+		core::parallelFor(
+		    size_t(np_src + ne_src), o.threads, 32,
+		    [&](size_t i_)
 		    {
+			    const int i = static_cast<int>(i_);
 			    if (i < np_src)
 			    {
 				    const Eigen::Vector3f x = T * src_planar[i];
