@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdint>
 #include <future>
+#include <memory>
 #include <stdexcept>
 #include <unordered_map>
 #include <vector>
@@ -112,6 +113,35 @@ std::vector<size_t> spacedKeyframes(const Keyframes& keyframes,
 }
 }  // namespace
 
+namespace
+{
+/** The keys in depth-first order of the tree (Morton order of the key
+ * bits, most significant first). Updating a keyframe's few hundred
+ * thousand free keys in hash order descended the 16 levels of a tree of
+ * millions of leaves at random: most of the export. Each key's log-odds
+ * does not depend on the order of the other keys. */
+std::vector<octomap::OcTreeKey> inTreeOrder(const octomap::KeySet& keys)
+{
+	auto morton = [](const octomap::OcTreeKey& k)
+	{
+		uint64_t m = 0;
+		for (int b = 15; b >= 0; b--)
+			m = (m << 3) | (uint64_t((k[0] >> b) & 1) << 2) |
+			    (uint64_t((k[1] >> b) & 1) << 1) | uint64_t((k[2] >> b) & 1);
+		return m;
+	};
+	std::vector<std::pair<uint64_t, octomap::OcTreeKey>> coded;
+	coded.reserve(keys.size());
+	for (const auto& k : keys) coded.emplace_back(morton(k), k);
+	std::sort(coded.begin(), coded.end(),
+	          [](const auto& a, const auto& b) { return a.first < b.first; });
+	std::vector<octomap::OcTreeKey> out;
+	out.reserve(coded.size());
+	for (const auto& c : coded) out.push_back(c.second);
+	return out;
+}
+}  // namespace
+
 OctomapSummary writeOctomap(const Keyframes& keyframes,
                             const KeyframeCloudLoader& cloud_of,
                             double resolution_m, double max_range_m,
@@ -125,19 +155,23 @@ OctomapSummary writeOctomap(const Keyframes& keyframes,
 	    spacedKeyframes(keyframes, keyframe_spacing_m);
 	s.keyframes_skipped = keyframes.size() - cast_kf.size();
 	octomap::OcTree tree(resolution_m);
-	// Ray casting (the keys a keyframe's rays cross) for keyframe i+1 runs
-	// on a second thread while keyframe i's keys update the tree: each was
-	// about half of the export (56 s for the 460 keyframes of the 7-minute
-	// handheld run). The casting uses a scratch tree of the same resolution
-	// (same keys; an OcTree's ray buffers are its own), and the updates are
-	// insertPointCloud's (discretize, lazy_eval) in its order: the same file.
+	// Ray casting (the keys a keyframe's rays cross) runs for the next two
+	// keyframes on two threads while keyframe i's keys update the tree: the
+	// casting is most of the export (one casting thread left the second
+	// core idle: 35 s of the handheld run's 42 s of outputs). Each casting
+	// uses a scratch tree of the same resolution (same keys; an OcTree's ray
+	// buffers are its own), and the updates are insertPointCloud's
+	// (discretize, lazy_eval) in keyframe order: the same file.
 	struct Rays
 	{
-		octomap::KeySet free, occupied;
+		std::vector<octomap::OcTreeKey> free, occupied;  ///< in tree order
 		size_t points = 0;
 	};
-	octomap::OcTree caster(resolution_m);
-	auto cast = [&](size_t i)
+	constexpr size_t kCasters = 2;
+	std::vector<std::unique_ptr<octomap::OcTree>> casters;
+	for (size_t c = 0; c < kCasters; c++)
+		casters.push_back(std::make_unique<octomap::OcTree>(resolution_m));
+	auto cast = [&](size_t i, octomap::OcTree& caster)
 	{
 		const auto& kf = keyframes[i];
 		const std::vector<Eigen::Vector3f> pts = cloud_of(i);
@@ -154,19 +188,29 @@ OctomapSummary writeOctomap(const Keyframes& keyframes,
 		r.points = pts.size();
 		// discretize: one ray per end voxel (several points in one voxel
 		// would cast the same ray).
+		octomap::KeySet free, occupied;
 		caster.computeDiscreteUpdate(cloud,
 		                             octomap::point3d(o.x(), o.y(), o.z()),
-		                             r.free, r.occupied, max_range_m);
+		                             free, occupied, max_range_m);
+		r.free = inTreeOrder(free);
+		r.occupied = inTreeOrder(occupied);
 		return r;
 	};
-	std::future<Rays> next;
-	if (!cast_kf.empty())
-		next = std::async(std::launch::async, cast, cast_kf[0]);
+	// Keyframe j is cast on casters[j % kCasters]; its future is
+	// pending[j % kCasters].
+	std::vector<std::future<Rays>> pending(kCasters);
+	auto launch = [&](size_t j)
+	{
+		if (j < cast_kf.size())
+			pending[j % kCasters] =
+			    std::async(std::launch::async, cast, cast_kf[j],
+			               std::ref(*casters[j % kCasters]));
+	};
+	for (size_t j = 0; j < kCasters; j++) launch(j);
 	for (size_t j = 0; j < cast_kf.size(); j++)
 	{
-		const Rays r = next.get();  // rethrows a loader error
-		if (j + 1 < cast_kf.size())
-			next = std::async(std::launch::async, cast, cast_kf[j + 1]);
+		const Rays r = pending[j % kCasters].get();  // rethrows a loader error
+		launch(j + kCasters);
 		// lazy_eval: inner nodes are updated once at the end.
 		for (const auto& k : r.free) tree.updateNode(k, false, true);
 		for (const auto& k : r.occupied) tree.updateNode(k, true, true);
