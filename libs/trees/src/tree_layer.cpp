@@ -201,9 +201,10 @@ void TreeLayer::SortedVoxels::reload(const core::SpillFile& f)
 	if (!added.empty()) mergeIn(added);  // sets changed_
 }
 
-TreeLayer::SortedVoxels TreeLayer::SortedVoxels::loaded(
-    const core::SpillFile* f, const Eigen::Vector2f& lo,
-    const Eigen::Vector2f& hi) const
+void TreeLayer::SortedVoxels::loadInto(const core::SpillFile* f,
+                                       const Eigen::Vector2f& lo,
+                                       const Eigen::Vector2f& hi,
+                                       SortedVoxels& copy) const
 {
 	// Cell index ranges of the box (keys hold the cell indices per axis).
 	const uint64_t m = (uint64_t(1) << 21) - 1;
@@ -221,8 +222,16 @@ TreeLayer::SortedVoxels TreeLayer::SortedVoxels::loaded(
 		const uint64_t ix = v.key >> 42, iy = (v.key >> 21) & m;
 		return ix >= x0 && ix <= x1 && iy >= y0 && iy <= y1;
 	};
-	SortedVoxels copy(voxel_m_);
-	std::vector<Voxel> added;  // in memory: all, or those added since spilled
+	// The buffers stay with the thread: a detection reads nine columns, and
+	// fresh vectors of tens of MB came back as page faults (a tenth of the
+	// end-of-run detection).
+	copy.voxel_m_ = voxel_m_;
+	copy.voxels_.clear();
+	copy.pending_.clear();
+	copy.spilled_ = copy.on_disk_ = false;
+	copy.spill_count_ = 0;
+	thread_local std::vector<Voxel> added, chunk;
+	added.clear();  // in memory: all, or those added since spilled
 	for (const auto& v : voxels_)
 		if (inBox(v)) added.push_back(v);
 	for (const auto& q : pending_)
@@ -230,21 +239,38 @@ TreeLayer::SortedVoxels TreeLayer::SortedVoxels::loaded(
 		const Voxel v = voxelOf(q);
 		if (inBox(v)) added.push_back(v);
 	}
-	if (spilled_)
+	if (spilled_ && spill_count_ > 0)
 	{
-		// Sorted on disk: the kept voxels stay sorted.
-		constexpr size_t kChunk = size_t(1) << 20;
-		std::vector<Voxel> chunk;
-		for (size_t at = 0; at < spill_count_; at += kChunk)
+		// Sorted on disk: the run of keys with x cells in [x0, x1], found by
+		// bisection (a few dozen reads of one voxel), stays sorted.
+		auto firstAtLeast = [&](uint64_t key)
 		{
-			const size_t n = std::min(kChunk, spill_count_ - at);
+			size_t a = 0, b = spill_count_;
+			Voxel v;
+			while (a < b)
+			{
+				const size_t mid = a + (b - a) / 2;
+				f->read(spill_offset_ + mid * sizeof(Voxel), &v, sizeof(Voxel));
+				if (v.key < key)
+					a = mid + 1;
+				else
+					b = mid;
+			}
+			return a;
+		};
+		const size_t begin = firstAtLeast(x0 << 42);
+		const size_t end =
+		    x1 >= m ? spill_count_ : firstAtLeast((x1 + 1) << 42);
+		constexpr size_t kChunk = size_t(1) << 18;
+		for (size_t at = begin; at < end; at += kChunk)
+		{
+			const size_t n = std::min(kChunk, end - at);
 			f->readVector(spill_offset_ + at * sizeof(Voxel), n, chunk);
 			for (const auto& v : chunk)
 				if (inBox(v)) copy.voxels_.push_back(v);
 		}
 	}
 	if (!added.empty()) copy.mergeIn(added);
-	return copy;
 }
 
 namespace
@@ -336,7 +362,7 @@ const TreeLayer::SortedVoxels& TreeLayer::readable(
 	if (!c.stem.spilled() && c.stem.compacted()) return c.stem;
 	// A neighbour's margin strip only: a long run's column holds millions
 	// of voxels, and every detection read its eight neighbours whole.
-	copy = c.stem.loaded(spill_.get(), lo, hi);
+	c.stem.loadInto(spill_.get(), lo, hi, copy);
 	return copy;
 }
 
@@ -599,7 +625,7 @@ std::vector<map::TreeRecord> TreeLayer::findTrees(
 			for (const auto& [key, p] : it->second.lowest)
 				if (inside(p.x(), p.y(), ground_margin))
 					ground.push_back(p.cast<double>());
-			SortedVoxels copy;
+			thread_local SortedVoxels copy;  // buffers kept, as s's
 			const auto& stem = readable(
 			    it->second, copy,
 			    Eigen::Vector2f(float(x0 - margin), float(y0 - margin)),

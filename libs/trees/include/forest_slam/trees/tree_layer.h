@@ -222,15 +222,14 @@ class TreeLayer
 		void spill(core::SpillFile& f);
 		/** Reads spilled voxels back (merging those added since). */
 		void reload(const core::SpillFile& f);
-		/** A copy of the voxels whose cells are in the horizontal box [lo,
-		 * hi) [m], in memory, for reading; the set stays as it is (spilled
-		 * or not). A spilled set is read in chunks: only the box is held. */
-		SortedVoxels loaded(
-		    const core::SpillFile* f,
-		    const Eigen::Vector2f& lo = Eigen::Vector2f::Constant(
-		        -std::numeric_limits<float>::infinity()),
-		    const Eigen::Vector2f& hi = Eigen::Vector2f::Constant(
-		        std::numeric_limits<float>::infinity())) const;
+		/** Into `copy` (its buffers reused), the voxels whose cells are in
+		 * the horizontal box [lo, hi] [m], for reading; the set stays as it
+		 * is (spilled or not). A spilled set is read in chunks, and only
+		 * over the run of keys whose x cells are in the box: the keys are
+		 * sorted x first, so a neighbour's margin strip beside the column
+		 * is a short run of the file. */
+		void loadInto(const core::SpillFile* f, const Eigen::Vector2f& lo,
+		              const Eigen::Vector2f& hi, SortedVoxels& copy) const;
 		bool spilled() const { return spilled_; }
 		size_t spilledBytes() const
 		{
