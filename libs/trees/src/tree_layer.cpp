@@ -65,6 +65,8 @@ double distanceToSquare(double x, double y, double x0, double y0, double s)
 namespace
 {
 constexpr size_t kMaxPending = 200000;  ///< points buffered per column
+/** Read buffers kept by a detecting thread between reads (48 MB). */
+constexpr size_t kKeptReadVoxels = size_t(1) << 20;
 constexpr int64_t kKeyOffset = int64_t(1) << 20;  ///< 21 bits per axis
 }  // namespace
 
@@ -201,6 +203,30 @@ void TreeLayer::SortedVoxels::reload(const core::SpillFile& f)
 	if (!added.empty()) mergeIn(added);  // sets changed_
 }
 
+struct TreeLayer::SortedVoxels::ReadBuffers
+{
+	SortedVoxels copy;
+	std::vector<Voxel> added, chunk;
+};
+
+TreeLayer::SortedVoxels::ReadBuffers& TreeLayer::SortedVoxels::readBuffers()
+{
+	thread_local ReadBuffers b;
+	return b;
+}
+
+void TreeLayer::SortedVoxels::freeReadBuffers()
+{
+	readBuffers() = ReadBuffers{};
+}
+
+void TreeLayer::SortedVoxels::trimReadBuffers(size_t voxels)
+{
+	auto& b = readBuffers();
+	for (auto* v : {&b.copy.voxels_, &b.added})
+		if (v->capacity() > voxels) std::vector<Voxel>().swap(*v);
+}
+
 void TreeLayer::SortedVoxels::loadInto(const core::SpillFile* f,
                                        const Eigen::Vector2f& lo,
                                        const Eigen::Vector2f& hi,
@@ -230,7 +256,8 @@ void TreeLayer::SortedVoxels::loadInto(const core::SpillFile* f,
 	copy.pending_.clear();
 	copy.spilled_ = copy.on_disk_ = false;
 	copy.spill_count_ = 0;
-	thread_local std::vector<Voxel> added, chunk;
+	auto& added = readBuffers().added;
+	auto& chunk = readBuffers().chunk;
 	added.clear();  // in memory: all, or those added since spilled
 	for (const auto& v : voxels_)
 		if (inBox(v)) added.push_back(v);
@@ -567,7 +594,10 @@ size_t TreeLayer::finish(map::CForestMap& map)
 		work();
 		if (second.joinable()) second.join();
 	}
-	columnScratch() = ColumnScratch{};  // the second thread's went with it
+	// The buffers of this thread (the second thread's went with it): the
+	// robot run kept 165 MB of them through the output writing.
+	columnScratch() = ColumnScratch{};
+	SortedVoxels::freeReadBuffers();
 	if (error) std::rethrow_exception(error);
 	for (size_t i = 0; i < due.size(); i++)
 	{
@@ -625,7 +655,8 @@ std::vector<map::TreeRecord> TreeLayer::findTrees(
 			for (const auto& [key, p] : it->second.lowest)
 				if (inside(p.x(), p.y(), ground_margin))
 					ground.push_back(p.cast<double>());
-			thread_local SortedVoxels copy;  // buffers kept, as s's
+			SortedVoxels& copy =
+			    SortedVoxels::readBuffers().copy;  // buffers kept, as s's
 			const auto& stem = readable(
 			    it->second, copy,
 			    Eigen::Vector2f(float(x0 - margin), float(y0 - margin)),
@@ -649,6 +680,8 @@ std::vector<map::TreeRecord> TreeLayer::findTrees(
 					    seg.range_class.push_back(uint8_t(s & 3));
 				    }
 			    });
+			// Margin strips reuse the buffers; a whole column's copy goes.
+			SortedVoxels::trimReadBuffers(kKeptReadVoxels);
 		}
 	std::vector<map::TreeRecord> found;
 	if (!ground.empty() && !pts.empty())

@@ -230,6 +230,16 @@ class TreeLayer
 		 * is a short run of the file. */
 		void loadInto(const core::SpillFile* f, const Eigen::Vector2f& lo,
 		              const Eigen::Vector2f& hi, SortedVoxels& copy) const;
+		/** The calling thread's buffers of loadInto() and of the copies
+		 * it fills (a column's worth, kept between detections), and their
+		 * release. */
+		struct ReadBuffers;
+		static ReadBuffers& readBuffers();
+		static void freeReadBuffers();
+		/** Frees those buffers that hold more than `voxels`: a big
+		 * column's copy would otherwise stay through the small ones (two
+		 * threads detecting at once each kept their largest). */
+		static void trimReadBuffers(size_t voxels);
 		bool spilled() const { return spilled_; }
 		size_t spilledBytes() const
 		{
