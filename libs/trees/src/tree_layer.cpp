@@ -217,7 +217,10 @@ TreeLayer::SortedVoxels::ReadBuffers& TreeLayer::SortedVoxels::readBuffers()
 
 void TreeLayer::SortedVoxels::freeReadBuffers()
 {
-	readBuffers() = ReadBuffers{};
+	auto& b = readBuffers();
+	b.copy = SortedVoxels();
+	std::vector<Voxel>().swap(b.added);
+	std::vector<Voxel>().swap(b.chunk);
 }
 
 void TreeLayer::SortedVoxels::trimReadBuffers(size_t voxels)
