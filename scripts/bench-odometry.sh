@@ -4,6 +4,11 @@
 # and prints throughput (scans/s, real-time factor for a 10 Hz VLP-16),
 # per-stage milliseconds (median, p95), peak RSS, and the accuracy figures of
 # `forest-eval traj` (RPE, vertical drift, ATE, return to start).
+# Each scenario runs twice: with the shipped INI (the whole pipeline: loop
+# closure, tree layer, every output) and "odometry only", the target of
+# issue 6 (front-end + odometry + mapping: the same INI with [loop], the
+# tree layer and the file outputs other than trajectory.tum off; the
+# dense-map collection still runs). ODOMETRY_ONLY=0 skips the second run.
 # Scenarios are reused from scripts/bench-sim.sh (BUILD/bench-sim/<name>),
 # generated if missing. Usage: scripts/bench-odometry.sh [BUILD] [scenario...]
 set -euo pipefail
@@ -21,16 +26,38 @@ for s in $SCENARIOS; do
   fi
   ini=ini/vlp16-handheld.ini
   [ "$s" = robot ] && ini=ini/vlp16-robot.ini
-  /usr/bin/time -f "%M" -o "$OUT/$s.rss" "$BIN/forest-slam" map --config "$ini" \
-    --rawlog "$sim/run.rawlog" --out "$OUT/$s" --progress log > "$OUT/$s.log" 2>&1
-  "$BIN/forest-eval" traj --gt "$sim/gt_trajectory.tum" --est "$OUT/$s/trajectory.tum" \
-    --json "$OUT/$s/traj.json" > "$OUT/$s/traj.txt"
-  python3 - "$OUT/$s" "$(cat "$OUT/$s.rss")" "$s" "$ini" <<'PY'
+  runs="$s"
+  if [ "${ODOMETRY_ONLY:-1}" = 1 ]; then
+    # The shipped INI with the back-end, the tree layer and the outputs off.
+    python3 - "$ini" "$OUT/$s-odometry.ini" <<'PY'
+import sys
+sys.path.insert(0, "scripts")
+from bench_pipeline import set_ini_key
+text = open(sys.argv[1]).read()
+for sec, key, val in [("loop", "enabled", "false"), ("trees", "layer_enabled", "false")] + [
+        ("outputs", k, "false") for k in ("trajectory_kitti", "keyframes_simplemap", "forest_map", "las",
+                                          "octomap_bt", "trees_csv", "trees_geojson", "dtm_asc",
+                                          "report_html", "detect_trees_if_empty")]:
+    text = set_ini_key(text, sec, key, val)
+open(sys.argv[2], "w").write(text)
+PY
+    runs="$s $s-odometry"
+  fi
+  for run in $runs; do
+  run_ini=$ini
+  [ "$run" != "$s" ] && run_ini=$OUT/$run.ini
+  /usr/bin/time -f "%M" -o "$OUT/$run.rss" "$BIN/forest-slam" map --config "$run_ini" \
+    --rawlog "$sim/run.rawlog" --out "$OUT/$run" --progress log > "$OUT/$run.log" 2>&1
+  "$BIN/forest-eval" traj --gt "$sim/gt_trajectory.tum" --est "$OUT/$run/trajectory.tum" \
+    --json "$OUT/$run/traj.json" > "$OUT/$run/traj.txt"
+  python3 - "$OUT/$run" "$(cat "$OUT/$run.rss")" "$run" "$run_ini" <<'PY'
 import json, sys
 d, rss_kb, name, ini = sys.argv[1], int(sys.argv[2]), sys.argv[3], sys.argv[4]
 r = json.load(open(d + "/run_summary.json"))
 t = json.load(open(d + "/traj.json"))
-print(f"== {name} ({ini}): {r['scans_mapped']} scans, {r['data_seconds']:.1f} s of data, "
+what = ("front-end + odometry + mapping" if name.endswith("-odometry")
+        else "whole pipeline, shipped INI")
+print(f"== {name} ({ini}; {what}): {r['scans_mapped']} scans, {r['data_seconds']:.1f} s of data, "
       f"{t['vertical_drift']['distance_m']:.0f} m")
 print(f"  throughput   {r['scans_per_second']:.1f} scans/s, {r['real_time_factor']:.2f}x real time, "
       f"peak RSS {rss_kb/1024:.0f} MB (targets: >= 100 scans/s, 10x)")
@@ -46,4 +73,5 @@ rs = t["return_to_start"]["estimate_vs_gt"]
 print(f"  ATE aligned  {a:.3f} m; return to start {rs['total_trans_m']:.3f} m, {rs['angle_deg']:.2f} deg; "
       f"IMU scans {r.get('scans_imu', 0)}, degenerate {r['scans_degenerate']}, unregistered {r['scans_unregistered']}")
 PY
+  done
 done
