@@ -112,6 +112,72 @@ TEST(DenseMapFollow, EveryPointMovesWithItsOwnCorrectionInPlace)
 	EXPECT_THROW(mem.add(outputs::DensePoint{}), std::logic_error);
 }
 
+TEST(RunCollector, CollectsOnlyWhatTheFilesAskedForRead)
+{
+	// A ring of returns over 30 scans, 1 m apart: keyframes and the dense
+	// map when files read them, nothing but the count otherwise.
+	auto run = [](const outputs::OutputOptions& o)
+	{
+		outputs::RunCollector col(o);
+		for (int k = 0; k < 30; k++)
+		{
+			core::ScanPoints s;
+			s.stamp_s = 1000 + 0.1 * k;
+			s.sweep_s = 0.1;
+			std::vector<Eigen::Vector3f> deskewed;
+			for (int i = 0; i < 360; i++)
+			{
+				core::ScanPoint p;
+				p.x = 5 * std::cos(i * M_PI / 180);
+				p.y = 5 * std::sin(i * M_PI / 180);
+				p.z = -1;
+				p.range_m = std::sqrt(26.f);
+				s.points.push_back(p);
+				deskewed.emplace_back(p.x, p.y, p.z);
+			}
+			Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+			T.translation().x() = k;
+			col.addScan(s, core::StampedPose{s.stamp_s, T}, deskewed, nullptr);
+		}
+		return std::make_tuple(col.scans(), col.keyframes().size(),
+		                       col.dense().size());
+	};
+	outputs::OutputOptions all;
+	all.spill_to_disk = false;
+	const auto [n_all, kf_all, dense_all] = run(all);
+	EXPECT_EQ(n_all, 30u);
+	EXPECT_EQ(kf_all, 30u);  // every scan 1 m on
+	EXPECT_GT(dense_all, 30u * 300);
+
+	outputs::OutputOptions none = all;
+	none.las = none.dtm_asc = none.report_html = false;
+	none.keyframes_simplemap = none.octomap_bt = false;
+	// Trees from the tree layer only: the dense map is not read for them.
+	none.detect_trees_if_empty = false;
+	ASSERT_FALSE(none.needsDenseMap());
+	ASSERT_FALSE(none.needsKeyframeClouds());
+	const auto [n_none, kf_none, dense_none] = run(none);
+	EXPECT_EQ(n_none, 30u);
+	EXPECT_EQ(kf_none, 0u);
+	EXPECT_EQ(dense_none, 0u);
+
+	outputs::OutputOptions map_bt = none;  // keyframes, no dense map
+	map_bt.octomap_bt = true;
+	const auto [n_bt, kf_bt, dense_bt] = run(map_bt);
+	EXPECT_EQ(kf_bt, 30u);
+	EXPECT_EQ(dense_bt, 0u);
+
+	outputs::OutputOptions pcd = none;  // dense map, no keyframes
+	pcd.pcd = true;
+	const auto [n_pcd, kf_pcd, dense_pcd] = run(pcd);
+	EXPECT_EQ(kf_pcd, 0u);
+	EXPECT_EQ(dense_pcd, dense_all);
+
+	outputs::OutputOptions trees = none;  // trees detected on the dense map
+	trees.detect_trees_if_empty = true;
+	EXPECT_TRUE(trees.needsDenseMap());
+}
+
 TEST(DenseMapFollow, LasAndDtmWrittenAfterACorrectionAreTheMovedGround)
 {
 	// Flat ground z = -1.5 under a sensor at rest, collected twice; one

@@ -31,6 +31,8 @@ RunCollector::RunCollector(const OutputOptions& o, double min_range_m,
       min_range_m_(static_cast<float>(min_range_m)),
       max_range_m_(static_cast<float>(max_range_m)),
       dense_(o.dense_voxel_m, o.spill_to_disk ? o.dense_tile_m : 0),
+      collect_dense_(o.needsDenseMap()),
+      collect_keyframes_(o.needsKeyframeClouds()),
       worker_(2)
 {
 	// At once, so a bad spill_dir stops the run before it starts.
@@ -70,6 +72,13 @@ void RunCollector::addScan(const core::ScanPoints& scan,
 		    "RunCollector::addScan: " + std::to_string(deskewed.size()) +
 		    " deskewed points for a scan of " +
 		    std::to_string(scan.points.size()));
+	// Not even copied when no file reads it (the copy is on the caller's
+	// thread, the mapping thread).
+	if (!collect_dense_ && !collect_keyframes_)
+	{
+		scans_++;  // no job was ever queued: nothing races with it
+		return;
+	}
 	worker_.push([this, scan, pose, deskewed]
 	             { collect(scan, pose, &deskewed, nullptr); });
 }
@@ -79,6 +88,11 @@ void RunCollector::addScan(
     const std::function<bool(double, Eigen::Isometry3d&)>& pose_at)
 {
 	worker_.flush();  // pose_at reads the caller's state: collected here
+	if (!collect_dense_ && !collect_keyframes_)
+	{
+		scans_++;
+		return;
+	}
 	collect(scan, pose, nullptr, &pose_at);
 }
 
@@ -123,11 +137,12 @@ void RunCollector::collect(
 		    scan.sweep_s / (pose.t_s - prev_.t_s));
 
 	const bool keyframe =
-	    keyframes_.empty() ||
-	    scans_since_keyframe_ + 1 >=
-	        static_cast<size_t>(o_.keyframe_every_scans) ||
-	    (pose.pose.translation() - keyframes_.back().sensor_pose.translation())
-	            .norm() >= o_.keyframe_every_m;
+	    collect_keyframes_ &&
+	    (keyframes_.empty() ||
+	     scans_since_keyframe_ + 1 >=
+	         static_cast<size_t>(o_.keyframe_every_scans) ||
+	     (pose.pose.translation() - keyframes_.back().sensor_pose.translation())
+	             .norm() >= o_.keyframe_every_m);
 	std::optional<DenseMap> kf_grid;
 	if (keyframe) kf_grid.emplace(o_.keyframe_voxel_m);
 
@@ -151,7 +166,7 @@ void RunCollector::collect(
 		             : columnMotion(p, pose, motion, sweep, pose_at) *
 		                   Eigen::Vector3f(p.x, p.y, p.z);
 		if (kf_grid && p.range_m <= kf_r) kf_grid->claim(s);
-		if (p.range_m > dense_r) continue;
+		if (!collect_dense_ || p.range_m > dense_r) continue;
 		map_xyz_.push_back(T * s);  // map frame from here on
 		kept_.push_back(i);
 	}
@@ -192,7 +207,7 @@ void RunCollector::collect(
 		scans_since_keyframe_++;
 	// Tiles no return of this sensor position can reach go to disk (the
 	// margin keeps a tile at the edge from going back and forth).
-	if (o_.spill_to_disk)
+	if (o_.spill_to_disk && collect_dense_)
 	{
 		spill();
 		dense_.spillFar(pose.pose.translation().head<2>(),

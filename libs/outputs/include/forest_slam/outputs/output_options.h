@@ -67,6 +67,21 @@ struct OutputOptions : public mrpt::config::CLoadableOptions
 	 * the end of the run. */
 	bool detect_trees_if_empty = true;
 
+	/** Whether a file asked for reads the dense map: map.las/.ply/.pcd, the
+	 * DTM, the report (its area), or trees detected on it. Without one, a
+	 * run does not collect it (~11 % of an odometry-only run's CPU). */
+	bool needsDenseMap() const
+	{
+		return las || ply || pcd || dtm_asc || report_html ||
+		       (detect_trees_if_empty &&
+		        (trees_csv || trees_geojson || forest_map));
+	}
+	/** Whether a file asked for reads the keyframe clouds. */
+	bool needsKeyframeClouds() const
+	{
+		return keyframes_simplemap || octomap_bt || octomap_ot;
+	}
+
 	void loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 	                        const std::string& section) override;
 	void saveToConfigFile(mrpt::config::CConfigFileBase& c,

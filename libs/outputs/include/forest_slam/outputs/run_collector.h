@@ -139,6 +139,9 @@ class RunCollector
 	std::vector<GnssEpoch> gnss_;
 	const ground::GroundLattice* lattice_ = nullptr;
 	size_t scans_ = 0, scans_since_keyframe_ = 0;
+	// What the files asked for read (OutputOptions::needsDenseMap, ...);
+	// with neither, addScan only counts the scan.
+	bool collect_dense_, collect_keyframes_;
 	bool have_prev_ = false;
 	core::StampedPose prev_;
 	double collect_s_ = 0;
