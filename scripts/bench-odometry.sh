@@ -7,8 +7,8 @@
 # Each scenario runs twice: with the shipped INI (the whole pipeline: loop
 # closure, tree layer, every output) and "odometry only", the target of
 # issue 6 (front-end + odometry + mapping: the same INI with [loop], the
-# tree layer and the file outputs other than trajectory.tum off; the
-# dense-map collection still runs). ODOMETRY_ONLY=0 skips the second run.
+# tree layer and the file outputs other than trajectory.tum off: nothing is
+# then collected for the outputs). ODOMETRY_ONLY=0 skips the second run.
 # Scenarios are reused from scripts/bench-sim.sh (BUILD/bench-sim/<name>),
 # generated if missing. Usage: scripts/bench-odometry.sh [BUILD] [scenario...]
 set -euo pipefail
