@@ -60,7 +60,8 @@ what = ("front-end + odometry + mapping" if name.endswith("-odometry")
 print(f"== {name} ({ini}; {what}): {r['scans_mapped']} scans, {r['data_seconds']:.1f} s of data, "
       f"{t['vertical_drift']['distance_m']:.0f} m")
 print(f"  throughput   {r['scans_per_second']:.1f} scans/s, {r['real_time_factor']:.2f}x real time, "
-      f"peak RSS {rss_kb/1024:.0f} MB (targets: >= 100 scans/s, 10x)")
+      f"peak RSS {rss_kb/1024:.0f} MB (targets: >= 100 scans/s, 10x); end to end with the outputs "
+      f"{r.get('scans_per_second_end_to_end', 0):.1f} scans/s ({r.get('total_wall_seconds', 0):.1f} s)")
 print("  stage ms     " + ", ".join(f"{k} {v['median']:.1f}/{v['p95']:.1f}" for k, v in r["stage_ms"].items())
       + "  (median/p95)")
 rpe = t["rpe"]

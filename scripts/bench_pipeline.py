@@ -187,7 +187,9 @@ def fmt(v, spec):
 def show(r):
     print(f"== {r['scenario']} (seed {r['seed']}): {r['scans']} scans, "
           f"{r['data_s']:.0f} s of data, {r['path_m'] or 0:.0f} m")
-    print(f"  throughput  {r['scans_per_s']:.1f} scans/s wall, "
+    print(f"  throughput  {r['scans_per_s']:.1f} scans/s over the mapping wall "
+          f"({r['mapping_wall_s']:.1f} s), {r['scans'] / r['wall_s']:.1f} scans/s "
+          f"end to end ({r['wall_s']:.1f} s with the outputs), "
           f"{r['real_time_factor']:.2f}x real time; CPU {r['cpu_s']:.0f} s: "
           f"{r['scans_per_cpu_s']:.1f} scans per CPU s, "
           f"{r['real_time_factor_cpu']:.2f}x real time per core "

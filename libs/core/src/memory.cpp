@@ -27,4 +27,12 @@ double peakRssMb()
 	return u.ru_maxrss / 1024.0;  // Linux: kilobytes
 }
 
+double processCpuSeconds()
+{
+	rusage u{};
+	getrusage(RUSAGE_SELF, &u);
+	return u.ru_utime.tv_sec + u.ru_stime.tv_sec +
+	       1e-6 * (u.ru_utime.tv_usec + u.ru_stime.tv_usec);
+}
+
 }  // namespace forest_slam::core

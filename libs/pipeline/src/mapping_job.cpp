@@ -1,5 +1,6 @@
 #include <forest_slam/core/atomic_file.h>
 #include <forest_slam/core/log.h>
+#include <forest_slam/core/memory.h>
 #include <forest_slam/core/progress.h>
 #include <forest_slam/io/rawlog_follower.h>
 #include <forest_slam/io/rawlog_reader.h>
@@ -387,6 +388,7 @@ std::vector<std::string> writeOutputs(const MappingPipeline& p,
                                       const MappingResult& r,
                                       const std::string& dir)
 {
+	const auto t_out = std::chrono::steady_clock::now();
 	std::vector<std::string> written;
 	const auto& s = r.stats;
 	const auto& cfg = p.config();
@@ -416,6 +418,12 @@ std::vector<std::string> writeOutputs(const MappingPipeline& p,
 	    dir);
 	for (const auto& f : out.files) written.push_back(f.path);
 	const auto& col = p.outputCollector();
+	// To the run summary: mapping, the tree layer's finish and the outputs.
+	const double total_wall =
+	    r.wall_seconds +
+	    std::chrono::duration<double>(std::chrono::steady_clock::now() - t_out)
+	        .count();
+	const double cpu_s = core::processCpuSeconds();
 
 	double tree_total_ms = s.tree_finish_ms;
 	for (double v : s.tree_ms) tree_total_ms += v;
@@ -456,6 +464,10 @@ std::vector<std::string> writeOutputs(const MappingPipeline& p,
 		       << (r.wall_seconds > 0 ? s.scans_mapped / r.wall_seconds : 0)
 		       << ",\n"
 		       << "  \"real_time_factor\": " << rt << ",\n"
+		       << "  \"total_wall_seconds\": " << total_wall << ",\n"
+		       << "  \"scans_per_second_end_to_end\": "
+		       << (total_wall > 0 ? s.scans_mapped / total_wall : 0) << ",\n"
+		       << "  \"cpu_seconds\": " << cpu_s << ",\n"
 		       << "  \"stage_ms\": " << stageTimesJson(s.stage_ms, s.tree_ms)
 		       << ",\n"
 		       << "  \"map_edge_voxels\": " << p.forestMap().edgePointCount()
@@ -469,6 +481,8 @@ std::vector<std::string> writeOutputs(const MappingPipeline& p,
 		       << ", \"share_of_wall\": "
 		       << (r.wall_seconds > 0 ? tree_total_ms / (1000 * r.wall_seconds)
 		                              : 0)
+		       << ", \"share_of_cpu\": "
+		       << (cpu_s > 0 ? tree_total_ms / (1000 * cpu_s) : 0)
 		       << ", \"finish_ms\": " << s.tree_finish_ms
 		       << ", \"detections\": "
 		       << (layer ? layer->stats().detections : 0)

@@ -15,6 +15,8 @@ namespace forest_slam::core
 double currentRssMb();
 /** Peak resident set size of this process so far [MB] (getrusage). */
 double peakRssMb();
+/** CPU time of this process so far, user + system, all threads [s]. */
+double processCpuSeconds();
 
 template <class T, class A>
 size_t vectorBytes(const std::vector<T, A>& v)
