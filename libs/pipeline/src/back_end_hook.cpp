@@ -6,6 +6,7 @@
 // attached to the keyframe before them; at the end every scan pose follows
 // its keyframe and the tree layer and the output keyframes follow.
 #include <forest_slam/core/log.h>
+#include <forest_slam/core/memory.h>
 #include <forest_slam/odometry/lidar_odometry.h>
 #include <forest_slam/pipeline/mapping_pipeline.h>
 
@@ -456,7 +457,16 @@ void MappingPipeline::mergeTreeLayerPasses(const core::Trajectory& now)
 			    return Eigen::Isometry3d(
 			        (*C)[scanNearestColumn(*xy, k, column_m)].cast<double>());
 		    };
+		    const double rss0 = core::currentRssMb();
+		    const auto t0 = std::chrono::steady_clock::now();
 		    tree_layer_->correct(at_time, of_column, m, true);
+		    // Rare (a handful an hour) and heavy: logged with the memory.
+		    FS_LOG_INFO("tree layer: passes merged during the run in "
+		                << std::chrono::duration<double>(
+		                       std::chrono::steady_clock::now() - t0)
+		                       .count()
+		                << " s; RSS " << rss0 << " -> " << core::currentRssMb()
+		                << " MB");
 	    });
 	tree_merged_pose_.resize(now.size());
 	for (size_t i = 0; i < now.size(); i++) tree_merged_pose_[i] = now[i].pose;
@@ -472,19 +482,21 @@ void MappingPipeline::mergeForestMapSegments(const core::Trajectory& now)
 	if (map_.segmentCount() < 2 || 2 * voxels < 3 * map_voxels_at_merge_)
 		return;
 	const auto t0 = std::chrono::steady_clock::now();
+	const double rss0 = core::currentRssMb();
 	const size_t segments = map_.segmentCount();
 	correctForestMap(trajectory_, now);
 	map_merged_pose_.resize(now.size());
 	for (size_t i = 0; i < now.size(); i++) map_merged_pose_[i] = now[i].pose;
 	map_voxels_at_merge_ = map_.edgePointCount() + map_.planarPointCount();
 	map_merges_++;
-	FS_LOG_DEBUG("CForestMap: " << segments << " segments, " << voxels
-	                            << " voxels merged into "
-	                            << map_voxels_at_merge_ << " in "
-	                            << std::chrono::duration<double>(
-	                                   std::chrono::steady_clock::now() - t0)
-	                                   .count()
-	                            << " s");
+	FS_LOG_INFO("CForestMap: " << segments << " segments, " << voxels
+	                           << " voxels merged into " << map_voxels_at_merge_
+	                           << " during the run in "
+	                           << std::chrono::duration<double>(
+	                                  std::chrono::steady_clock::now() - t0)
+	                                  .count()
+	                           << " s; RSS " << rss0 << " -> "
+	                           << core::currentRssMb() << " MB");
 }
 
 void MappingPipeline::correctForestMap(const core::Trajectory& as_mapped,
