@@ -26,6 +26,14 @@ class SpillFile
 	 * (disk full) naming the folder. */
 	uint64_t append(const void* data, size_t bytes);
 	void read(uint64_t offset, void* data, size_t bytes) const;
+	/** Sets `bytes` bytes aside at the end, to be filled with overwrite();
+	 * returns their offset. */
+	uint64_t reserve(size_t bytes)
+	{
+		const uint64_t at = end_;
+		end_ += bytes;
+		return at;
+	}
 	/** Replaces bytes already written (same length, in place). */
 	void overwrite(uint64_t offset, const void* data, size_t bytes);
 	/** The blob at [offset, offset + bytes) is not read again: its disk

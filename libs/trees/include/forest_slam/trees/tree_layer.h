@@ -60,6 +60,11 @@ struct TreeLayerStats
 class TreeLayer
 {
    public:
+	/** Voxels per chunk when a column spilled again after a revisit is
+	 * merged with its copy on disk (memory of that merge: two chunks).
+	 * Tests set it small, to cross the chunk borders. */
+	inline static size_t spill_merge_chunk_voxels = size_t(1) << 18;
+
 	/** `detect_during_run`: update() detects the columns the sensor has
 	 * left (trees during the run); false: only finish() detects, once per
 	 * column, and update() only spills (TreeOptions::detectDuringRun). */
@@ -289,6 +294,9 @@ class TreeLayer
 		void mergeIn(std::vector<Voxel>& add);
 		/** Sorts voxels_ in place and sums equal (key, pass, segment). */
 		void sortAndCombine();
+		/** spill() of a set already on disk with voxels added since: the
+		 * two merged into a new region of `f` chunk by chunk. */
+		void spillMerged(core::SpillFile& f);
 		Eigen::Vector3f centreOf(uint64_t key) const;
 		/** A buffered point as a one-point voxel. */
 		Voxel voxelOf(const Pending& q) const
