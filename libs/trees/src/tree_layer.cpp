@@ -138,14 +138,29 @@ float TreeLayer::SortedVoxels::transformByTime(
 	sortAndCombine();
 	if (!dominant_time) return worst;
 	// Within a pass the times were averaged (sortAndCombine); across passes
-	// the time of the largest count stays.
-	std::stable_sort(voxels_.begin(), voxels_.end(),
-	                 [](const Voxel& a, const Voxel& b)
-	                 {
-		                 return a.key != b.key           ? a.key < b.key
-		                        : a.segment != b.segment ? a.segment < b.segment
-		                                                 : a.count > b.count;
-	                 });
+	// the time of the largest count stays: each cell's voxels (sorted by key
+	// already) ordered by segment, then count, largest first. A stable
+	// insertion sort per cell (a few voxels: its passes and segments), the
+	// same order as a stable sort of the whole set, which took a buffer as
+	// large as the set (a long run's column: hundreds of MB at once).
+	const auto before = [](const Voxel& a, const Voxel& b) {
+		return a.segment != b.segment ? a.segment < b.segment
+		                              : a.count > b.count;
+	};
+	for (size_t g = 0; g < voxels_.size();)
+	{
+		size_t e = g + 1;
+		while (e < voxels_.size() && voxels_[e].key == voxels_[g].key) e++;
+		for (size_t i = g + 1; i < e; i++)
+		{
+			const Voxel v = voxels_[i];
+			size_t j = i;
+			for (; j > g && before(v, voxels_[j - 1]); j--)
+				voxels_[j] = voxels_[j - 1];
+			voxels_[j] = v;
+		}
+		g = e;
+	}
 	size_t w = 0;
 	for (size_t i = 0; i < voxels_.size(); i++)
 	{
