@@ -334,6 +334,12 @@ bool voxelLess(const V& a, const V& b)
 	       : a.pass != b.pass ? a.pass < b.pass
 	                          : a.segment < b.segment;
 }
+/** Whether `a` and `b` are one voxel: same cell, pass and segment. */
+template <class V>
+bool sameVoxel(const V& a, const V& b)
+{
+	return a.key == b.key && a.pass == b.pass && a.segment == b.segment;
+}
 /** Sums `v` into `m` (same key, pass and segment): the time averaged. */
 template <class V>
 void combine(V& m, const V& v)
@@ -358,7 +364,7 @@ void TreeLayer::SortedVoxels::sortAndCombine()
 	{
 		const Voxel& v = voxels_[i];
 		Voxel& m = voxels_[w];
-		if (m.key == v.key && m.pass == v.pass && m.segment == v.segment)
+		if (sameVoxel(m, v))
 			combine(m, v);
 		else
 			voxels_[++w] = v;
@@ -381,8 +387,7 @@ void TreeLayer::SortedVoxels::mergeIn(std::vector<Voxel>& add)
 	merged.reserve(voxels_.size() + add.size());
 	auto push = [&](const Voxel& v)
 	{
-		if (!merged.empty() && merged.back().key == v.key &&
-		    merged.back().pass == v.pass && merged.back().segment == v.segment)
+		if (!merged.empty() && sameVoxel(merged.back(), v))
 			combine(merged.back(), v);
 		else
 			merged.push_back(v);
@@ -401,8 +406,8 @@ void TreeLayer::SortedVoxels::spillMerged(core::SpillFile& f)
 {
 	// voxels_ (sorted and combined: compact() ran) holds what was added
 	// since the set went to disk. Reading the set back whole and merging in
-	// memory held it twice over: on the 58-minute run, spikes of ~300 MB
-	// for a second whenever the sensor left a revisited column. The same
+	// memory held it twice over: on the 58-minute run, spikes of up to
+	// 700 MB for a second whenever the sensor left a revisited column. The same
 	// forward merge as mergeIn() (the result is the same, bit for bit)
 	// streams instead: the disk copy read and the merged set written in
 	// chunks, into a region set aside for the largest possible result.
@@ -424,8 +429,7 @@ void TreeLayer::SortedVoxels::spillMerged(core::SpillFile& f)
 	};
 	const auto push = [&](const Voxel& v)
 	{
-		if (!buf.empty() && buf.back().key == v.key &&
-		    buf.back().pass == v.pass && buf.back().segment == v.segment)
+		if (!buf.empty() && sameVoxel(buf.back(), v))
 			combine(buf.back(), v);
 		else if (buf.push_back(v); buf.size() > kChunk)
 			flush(false);
