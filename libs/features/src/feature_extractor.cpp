@@ -72,6 +72,17 @@ Eigen::Vector3d eigenvalues3(const Eigen::Matrix3d& A)
 	const double lo = q + 2 * p * std::cos(phi + 2 * M_PI / 3);
 	return Eigen::Vector3d(lo, 3 * q - hi - lo, hi);
 }
+/** A deterministic scramble of an index (an integer hash), for an order
+ * that favours no position. */
+inline uint32_t scatterHash(uint32_t x)
+{
+	x ^= x >> 16;
+	x *= 0x7feb352dU;
+	x ^= x >> 15;
+	x *= 0x846ca68bU;
+	x ^= x >> 16;
+	return x;
+}
 }  // namespace
 
 Features extractFeatures(const std::vector<FeatureInputPoint>& pts,
@@ -227,12 +238,19 @@ Features extractFeatures(const std::vector<FeatureInputPoint>& pts,
 				else if (sm >= 0 && sm < o.planar_threshold)
 					planar_order.push_back(k);
 			}
+			// Ties (every silhouette scores the same) are broken by a hash
+			// of the point, not by position: by position a sector's quota
+			// went to the silhouettes at its start, the first stems in
+			// firing order, and left the others unused.
 			std::sort(edge_order.begin(), edge_order.end(),
 			          [&](int a, int c)
 			          {
 				          const float sa = out.smoothness[line[a]],
 				                      sc = out.smoothness[line[c]];
-				          return sa > sc || (sa == sc && a < c);
+				          if (sa != sc) return sa > sc;
+				          const uint32_t ha = scatterHash(line[a]),
+				                         hc = scatterHash(line[c]);
+				          return ha < hc || (ha == hc && a < c);
 			          });
 			std::sort(planar_order.begin(), planar_order.end(),
 			          [&](int a, int c)
