@@ -17,7 +17,7 @@ std::vector<FeatureInputPoint> scene()
 	{
 		const double az = (-60 + 0.2 * c) * M_PI / 180;
 		const Eigen::Vector2d d(std::cos(az), std::sin(az));
-		double r = 8.0 / d.x();	 // wall
+		double r = 8.0 / d.x();  // wall
 		int cluster = 0;
 		// Ray-circle intersection with the stem.
 		const Eigen::Vector2d ctr(5, 0);
@@ -55,17 +55,21 @@ TEST(Features, StemSilhouetteIsEdgeWallIsPlanar)
 	// Edges: the two silhouette points of the stem, never the wall (the
 	// wall points beside the stem are its occluded side).
 	ASSERT_EQ(f.edges.size(), 2u);
-	for (auto i : f.edges) EXPECT_EQ(pts[i].cluster, 1) << "edge at " << pts[i].xyz.transpose();
-	EXPECT_LT(pts[f.edges[0]].xyz.y() * pts[f.edges[1]].xyz.y(), 0) << "one on each side";
+	for (auto i : f.edges)
+		EXPECT_EQ(pts[i].cluster, 1) << "edge at " << pts[i].xyz.transpose();
+	EXPECT_LT(pts[f.edges[0]].xyz.y() * pts[f.edges[1]].xyz.y(), 0)
+	    << "one on each side";
 	size_t wall_planar = 0, ground_planar = 0;
 	for (auto i : f.planar)
 	{
 		EXPECT_NE(pts[i].cluster, 1);
-		if (pts[i].ground) ground_planar++;
-		else wall_planar++;
+		if (pts[i].ground)
+			ground_planar++;
+		else
+			wall_planar++;
 	}
 	EXPECT_EQ(wall_planar, 50u);
-	EXPECT_EQ(ground_planar, 150u);	 // 600 ground points / 4
+	EXPECT_EQ(ground_planar, 150u);  // 600 ground points / 4
 	// Wall points right next to the stem silhouette are smooth, because the
 	// window ignores the other cluster.
 	for (size_t i = 0; i < pts.size(); i++)
@@ -98,4 +102,57 @@ TEST(Features, EmptyAndNoiseInputs)
 	const auto f = extractFeatures(noise);
 	EXPECT_TRUE(f.edges.empty());
 	EXPECT_TRUE(f.planar.empty());
+}
+
+TEST(Features, EqualSilhouettesShareTheSectorQuotaAcrossTheSector)
+{
+	// Ten stems (r = 0.15 m, 5 m away) in front of a wall, one sector, room
+	// for four edges: all twenty silhouettes score the same. The four must
+	// not simply be the first ones in firing order (the first two stems):
+	// the registration then saw the same side of every sector.
+	std::vector<FeatureInputPoint> pts;
+	std::vector<Eigen::Vector2d> stems;
+	for (int s = 0; s < 10; s++)
+	{
+		const double az = (-50 + 10.0 * s) * M_PI / 180;
+		stems.emplace_back(5 * std::cos(az), 5 * std::sin(az));
+	}
+	for (int c = 0; c < 600; c++)
+	{
+		const double az = (-60 + 0.2 * c) * M_PI / 180;
+		const Eigen::Vector2d d(std::cos(az), std::sin(az));
+		double r = 8.0 / d.x();
+		int cluster = 0;
+		for (size_t s = 0; s < stems.size(); s++)
+		{
+			const double b = d.dot(stems[s]),
+			             q = b * b - (stems[s].squaredNorm() - 0.0225);
+			if (q >= 0 && b - std::sqrt(q) > 0 && b - std::sqrt(q) < r)
+			{
+				r = b - std::sqrt(q);
+				cluster = 1 + static_cast<int>(s);
+			}
+		}
+		FeatureInputPoint p;
+		p.xyz = Eigen::Vector3f(r * d.x(), r * d.y(), 0);
+		p.ring = 0;
+		p.column = c;
+		p.cluster = cluster;
+		pts.push_back(p);
+	}
+	FeatureOptions o;
+	o.sectors_per_ring = 1;
+	o.max_edges_per_sector = 4;
+	o.edge_min_linearity = 0;  // the 2D stems have no vertical extent
+	const auto f = extractFeatures(pts, o);
+	ASSERT_EQ(f.edges.size(), 4u);
+	int last_stem = 0;
+	for (auto i : f.edges)
+	{
+		ASSERT_GE(pts[i].cluster, 1) << "an edge off the stems";
+		last_stem = std::max(last_stem, pts[i].cluster);
+	}
+	EXPECT_GT(last_stem, 2) << "the quota went to the first two stems only";
+	// The order is a hash, not random: the same input, the same edges.
+	EXPECT_EQ(extractFeatures(pts, o).edges, f.edges);
 }
