@@ -185,6 +185,72 @@ TEST(CircleFit, AlongRayDriftDuringAPass)
 	EXPECT_LE(max_drift, 0.005);
 }
 
+// The same stem passed by twice, there and back five minutes apart (a loop
+// closure aligned the passes): each pass is squashed along its own walk,
+// so in time the two drift in opposite directions. One drift over both
+// passes is held near zero by the minutes between them and leaves the
+// stem too small; a drift per pass (RayFitOptions::pass_gap_s) recovers it.
+TEST(CircleFit, AlongRayDriftPerPass)
+{
+	std::mt19937 rng(12);
+	std::normal_distribution<double> g(0, 0.025);
+	const Eigen::Vector2d c(0.0, 8.0);
+	const double r = 0.15, scale_error = -0.003;
+	double sum_one = 0, sum_per_pass = 0;
+	const int trials = 10;
+	for (int t = 0; t < trials; t++)
+	{
+		Points2D p, d;
+		std::vector<double> time;
+		for (int pass = 0; pass < 2; pass++)
+			for (int k = 0; k <= 300; k++)
+			{
+				// Pass 0: x from -15 to 15 m; pass 1, 300 s later, back.
+				const double along = -15 + 0.1 * k + 0.01 * t;
+				const double x = pass == 0 ? along : -along;
+				const Eigen::Vector2d s(x, 0);
+				// Squashed along the walk about the pass's middle: the
+				// same shift field in x for both directions.
+				const Eigen::Vector2d shift(scale_error * x, 0);
+				const double dist = (c - s).norm();
+				const double view = std::atan2(c.y() - s.y(), c.x() - s.x());
+				const double half = std::asin(r / dist);
+				for (double b = -half; b <= half; b += 0.2 * M_PI / 180)
+				{
+					const double a = view + b;
+					const Eigen::Vector2d dir(std::cos(a), std::sin(a));
+					const double bb = (s - c).dot(dir),
+					             cc = (s - c).squaredNorm() - r * r;
+					if (bb * bb - cc < 0) continue;
+					p.push_back(s + shift +
+					            (-bb - std::sqrt(bb * bb - cc) + g(rng)) * dir);
+					d.push_back(dir);
+					time.push_back(300.0 * pass + 0.1 * k);
+				}
+			}
+		const auto f = fitCircleRobust(p, opts());
+		ASSERT_TRUE(f.ok);
+		Circle one = f.circle, per_pass = f.circle;
+		RayFitOptions ro;
+		ro.times = &time;
+		ro.drift_sigma_m_per_s = 0.005;
+		ro.pass_gap_s = 1e9;  // one drift for both passes
+		ASSERT_TRUE(refineCircleAlongRays(p, d, one, ro));
+		ro.pass_gap_s = 30;
+		Eigen::Vector2d v;
+		ASSERT_TRUE(refineCircleAlongRays(p, d, per_pass, ro, &v));
+		sum_one += one.radius_m - r;
+		sum_per_pass += per_pass.radius_m - r;
+		EXPECT_NEAR(std::abs(v.x()), std::abs(scale_error), 0.0015);
+	}
+	std::printf(
+	    "two passes by a 30 cm stem, 0.3 %% scale error: mean radius error "
+	    "%.1f mm with one drift, %.1f mm with a drift per pass\n",
+	    1e3 * sum_one / trials, 1e3 * sum_per_pass / trials);
+	EXPECT_LT(sum_one / trials, -0.005);
+	EXPECT_LE(std::abs(sum_per_pass / trials), 0.002);
+}
+
 // Multi-view fit (SLAM run): three time segments see a 30 cm stem from
 // three sides (σ = 1 cm along the rays), each shifted by a pose error of
 // 4 cm towards its sensor. One circle through the union is too

@@ -239,31 +239,48 @@ bool refineCircleAlongRays(const Points2D& p, const Points2D& dir, Circle& c,
 	const size_t n = p.size();
 	if (dir.size() != n || n < 3 || (o.times && o.times->size() != n))
 		return false;
-	// Apparent drift of the stem: its centre at time t is c + v (t - t̄),
-	// t̄ the mean time, under a Gaussian prior on v.
+	// Apparent drift of the stem: its centre at time t is c + v_k (t - t̄_k)
+	// in pass k (t̄_k its mean time), under a Gaussian prior on each v_k.
 	const bool moving = o.times && o.drift_sigma_m_per_s > 0;
 	std::vector<double> dt(n, 0.0);
+	std::vector<int> pass(n, 0);
+	int passes = 1;
 	if (moving)
 	{
-		double tm = 0;
-		for (size_t i = 0; i < n; i++) tm += (*o.times)[i];
-		tm /= double(n);
-		for (size_t i = 0; i < n; i++) dt[i] = (*o.times)[i] - tm;
+		std::vector<size_t> order(n);
+		for (size_t i = 0; i < n; i++) order[i] = i;
+		std::sort(order.begin(), order.end(),
+		          [&](size_t a, size_t b)
+		          { return (*o.times)[a] < (*o.times)[b]; });
+		for (size_t j = 1; j < n; j++)
+		{
+			if ((*o.times)[order[j]] - (*o.times)[order[j - 1]] > o.pass_gap_s)
+				passes++;
+			pass[order[j]] = passes - 1;
+		}
+		std::vector<double> tm(passes, 0.0), cnt(passes, 0.0);
+		for (size_t i = 0; i < n; i++)
+			tm[pass[i]] += (*o.times)[i], cnt[pass[i]] += 1;
+		for (size_t i = 0; i < n; i++)
+			dt[i] = (*o.times)[i] - tm[pass[i]] / cnt[pass[i]];
 	}
 	const double inv_sv2 =
 	    moving ? 1 / (o.drift_sigma_m_per_s * o.drift_sigma_m_per_s) : 0;
-	// x = (cx, cy, r, vx, vy).
-	Eigen::Matrix<double, 5, 1> x;
-	x << c.centre.x(), c.centre.y(), c.radius_m, 0, 0;
-	auto at = [&](const Eigen::Matrix<double, 5, 1>& v, size_t i) {
-		return Circle{{v[0] + v[3] * dt[i], v[1] + v[4] * dt[i]}, v[2]};
+	// x = (cx, cy, r, v_0x, v_0y, v_1x, ...).
+	const int m = 3 + 2 * passes;
+	Eigen::VectorXd x = Eigen::VectorXd::Zero(m);
+	x.head<3>() << c.centre.x(), c.centre.y(), c.radius_m;
+	auto at = [&](const Eigen::VectorXd& v, size_t i)
+	{
+		const int k = 3 + 2 * pass[i];
+		return Circle{{v[0] + v[k] * dt[i], v[1] + v[k + 1] * dt[i]}, v[2]};
 	};
 	double lambda = 1e-3;
 	std::vector<double> r(n);
 	std::vector<char> hit(n);
 	// Cost with a fixed scale; a missed ray costs the Tukey maximum; the
-	// prior on v in the same units (s² per unit of squared residual).
-	auto cost = [&](const Eigen::Matrix<double, 5, 1>& v, double s)
+	// prior on the v_k in the same units (s² per unit of squared residual).
+	auto cost = [&](const Eigen::VectorXd& v, double s)
 	{
 		double sum = 0;
 		Eigen::Vector3d J;
@@ -273,11 +290,13 @@ bool refineCircleAlongRays(const Points2D& p, const Points2D& dir, Circle& c,
 			sum += rayResidual(p[i], dir[i], at(v, i), t, J) ? tukeyRho(t, s)
 			                                                 : tukeyRho(1e9, s);
 		}
-		return sum + 0.5 * s * s * inv_sv2 * v.tail<2>().squaredNorm();
+		return sum + 0.5 * s * s * inv_sv2 * v.tail(m - 3).squaredNorm();
 	};
 	std::vector<double> hits;
 	std::vector<Eigen::Vector3d, Eigen::aligned_allocator<Eigen::Vector3d>> Js(
 	    n);
+	Eigen::MatrixXd H(m, m);
+	Eigen::VectorXd g(m);
 	for (int it = 0; it < o.max_iterations; it++)
 	{
 		hits.clear();
@@ -288,21 +307,29 @@ bool refineCircleAlongRays(const Points2D& p, const Points2D& dir, Circle& c,
 		}
 		if (hits.size() < 3) return false;
 		const double s = madScale(hits, o.min_scale_m);
-		Eigen::Matrix<double, 5, 5> H = Eigen::Matrix<double, 5, 5>::Zero();
-		Eigen::Matrix<double, 5, 1> g = Eigen::Matrix<double, 5, 1>::Zero();
+		H.setZero();
+		g.setZero();
 		for (size_t i = 0; i < n; i++)
 		{
 			if (!hit[i]) continue;
 			const double w = tukeyWeight(r[i], s);
 			if (w == 0) continue;
-			Eigen::Matrix<double, 5, 1> J;
-			J << Js[i], Js[i][0] * dt[i], Js[i][1] * dt[i];
-			H += w * J * J.transpose();
-			g += w * J * r[i];
+			const int k = 3 + 2 * pass[i];
+			const Eigen::Vector3d& J = Js[i];
+			const double Jv[2] = {J[0] * dt[i], J[1] * dt[i]};
+			// The rows of (c, r) and of this point's pass only.
+			const int idx[5] = {0, 1, 2, k, k + 1};
+			const double Jf[5] = {J[0], J[1], J[2], Jv[0], Jv[1]};
+			for (int a = 0; a < 5; a++)
+			{
+				g[idx[a]] += w * Jf[a] * r[i];
+				for (int b = 0; b < 5; b++)
+					H(idx[a], idx[b]) += w * Jf[a] * Jf[b];
+			}
 		}
-		// Prior on v (and v pinned at 0 when not estimated).
+		// Prior on the v_k (and pinned at 0 when not estimated).
 		const double prior = moving ? s * s * inv_sv2 : 1.0;
-		for (int j = 3; j < 5; j++)
+		for (int j = 3; j < m; j++)
 		{
 			H(j, j) += prior;
 			g[j] += prior * x[j];
@@ -314,7 +341,14 @@ bool refineCircleAlongRays(const Points2D& p, const Points2D& dir, Circle& c,
 		if (st == LmStep::Converged) it = o.max_iterations;
 	}
 	c = Circle{{x[0], x[1]}, x[2]};
-	if (drift) *drift = x.tail<2>();
+	if (drift)
+	{
+		std::vector<int> count(passes, 0);
+		for (size_t i = 0; i < n; i++) count[pass[i]]++;
+		const int k =
+		    int(std::max_element(count.begin(), count.end()) - count.begin());
+		*drift = x.segment<2>(3 + 2 * k);
+	}
 	return x.allFinite() && x[2] > 0;
 }
 

@@ -85,10 +85,16 @@ struct RayFitOptions
 	 * is then the circle at t̄. */
 	const std::vector<double>* times = nullptr;
 	double drift_sigma_m_per_s = 0;  ///< Gaussian prior on v per axis
+	/** Points more than this apart in time (sorted) are separate passes,
+	 * each with its own v about its own mean time: a stem passed by twice,
+	 * in other directions, is squashed along each pass, which one v
+	 * across minutes cannot follow [s]. */
+	double pass_gap_s = 30;
 	double min_scale_m = 0.002;
 	int max_iterations = 50;
 };
-/** `drift` (optional): the fitted v (zero if not estimated). */
+/** `drift` (optional): the fitted v of the pass with the most points
+ * (zero if not estimated). */
 bool refineCircleAlongRays(const Points2D& p, const Points2D& dir, Circle& c,
                            const RayFitOptions& o,
                            Eigen::Vector2d* drift = nullptr);
