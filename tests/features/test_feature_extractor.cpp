@@ -7,10 +7,17 @@ using namespace forest_slam::features;
 
 namespace
 {
-/** One ring (elevation 0) seeing a wall at x=8 (cluster 0) except a stem
- * (cylinder r=0.2 at (5,0), cluster 1) in front of it, plus ground points on
- * ring 1. Azimuth step 0.2 deg. */
-std::vector<FeatureInputPoint> scene()
+struct Stem
+{
+	Eigen::Vector2d centre;
+	double radius_m;
+};
+
+/** One ring (elevation 0) seeing a wall at x=8 (cluster 0) except the stems
+ * (cylinders, clusters 1, 2, ... in order) in front of it; with `ground`,
+ * ground points on ring 1. Azimuth -60..60 deg, step 0.2 deg. */
+std::vector<FeatureInputPoint> ringScene(const std::vector<Stem>& stems,
+                                         bool ground)
 {
 	std::vector<FeatureInputPoint> pts;
 	for (int c = 0; c < 600; c++)
@@ -19,13 +26,18 @@ std::vector<FeatureInputPoint> scene()
 		const Eigen::Vector2d d(std::cos(az), std::sin(az));
 		double r = 8.0 / d.x();  // wall
 		int cluster = 0;
-		// Ray-circle intersection with the stem.
-		const Eigen::Vector2d ctr(5, 0);
-		const double b = d.dot(ctr), q = b * b - (ctr.squaredNorm() - 0.04);
-		if (q >= 0 && b - std::sqrt(q) > 0)
+		for (size_t s = 0; s < stems.size(); s++)
 		{
-			r = b - std::sqrt(q);
-			cluster = 1;
+			// Ray-circle intersection, the nearest hit wins.
+			const Eigen::Vector2d& ctr = stems[s].centre;
+			const double b = d.dot(ctr),
+			             q = b * b - (ctr.squaredNorm() -
+			                          stems[s].radius_m * stems[s].radius_m);
+			if (q >= 0 && b - std::sqrt(q) > 0 && b - std::sqrt(q) < r)
+			{
+				r = b - std::sqrt(q);
+				cluster = 1 + static_cast<int>(s);
+			}
 		}
 		FeatureInputPoint p;
 		p.xyz = Eigen::Vector3f(r * d.x(), r * d.y(), 0);
@@ -33,6 +45,7 @@ std::vector<FeatureInputPoint> scene()
 		p.column = c;
 		p.cluster = cluster;
 		pts.push_back(p);
+		if (!ground) continue;
 		FeatureInputPoint g;
 		g.xyz = Eigen::Vector3f(6 * d.x(), 6 * d.y(), -1.5f);
 		g.ring = 1;
@@ -41,6 +54,12 @@ std::vector<FeatureInputPoint> scene()
 		pts.push_back(g);
 	}
 	return pts;
+}
+
+/** A stem (r=0.2 at (5,0)) in front of the wall, with ground. */
+std::vector<FeatureInputPoint> scene()
+{
+	return ringScene({{Eigen::Vector2d(5, 0), 0.2}}, true);
 }
 }  // namespace
 
@@ -110,36 +129,14 @@ TEST(Features, EqualSilhouettesShareTheSectorQuotaAcrossTheSector)
 	// for four edges: all twenty silhouettes score the same. The four must
 	// not simply be the first ones in firing order (the first two stems):
 	// the registration then saw the same side of every sector.
-	std::vector<FeatureInputPoint> pts;
-	std::vector<Eigen::Vector2d> stems;
+	std::vector<Stem> stems;
 	for (int s = 0; s < 10; s++)
 	{
 		const double az = (-50 + 10.0 * s) * M_PI / 180;
-		stems.emplace_back(5 * std::cos(az), 5 * std::sin(az));
+		stems.push_back(
+		    {Eigen::Vector2d(5 * std::cos(az), 5 * std::sin(az)), 0.15});
 	}
-	for (int c = 0; c < 600; c++)
-	{
-		const double az = (-60 + 0.2 * c) * M_PI / 180;
-		const Eigen::Vector2d d(std::cos(az), std::sin(az));
-		double r = 8.0 / d.x();
-		int cluster = 0;
-		for (size_t s = 0; s < stems.size(); s++)
-		{
-			const double b = d.dot(stems[s]),
-			             q = b * b - (stems[s].squaredNorm() - 0.0225);
-			if (q >= 0 && b - std::sqrt(q) > 0 && b - std::sqrt(q) < r)
-			{
-				r = b - std::sqrt(q);
-				cluster = 1 + static_cast<int>(s);
-			}
-		}
-		FeatureInputPoint p;
-		p.xyz = Eigen::Vector3f(r * d.x(), r * d.y(), 0);
-		p.ring = 0;
-		p.column = c;
-		p.cluster = cluster;
-		pts.push_back(p);
-	}
+	const auto pts = ringScene(stems, false);
 	FeatureOptions o;
 	o.sectors_per_ring = 1;
 	o.max_edges_per_sector = 4;

@@ -121,6 +121,43 @@ TEST(CircleFit, AlongRayNoiseOneSidedView)
 	EXPECT_LE(std::abs(sum_ray / trials), 0.002);
 }
 
+namespace
+{
+/** The rays of one straight pass by a stem (centre c, radius r) at 10 Hz
+ * and 1 m/s, 0.2 deg azimuth steps, x from x0 to -x0 (`back`: from -x0 to
+ * x0), range noise from `noise`. The map's odometry is off by
+ * `scale_error` along the walk about its middle (x = 0): every point moves
+ * by scale_error * x along x. Times start at t0. */
+void passBy(const Eigen::Vector2d& c, double r, double scale_error, double x0,
+            bool back, double t0, std::mt19937& rng,
+            std::normal_distribution<double>& noise, Points2D& p, Points2D& d,
+            std::vector<double>& time)
+{
+	for (int k = 0; k <= 300; k++)
+	{
+		const double along = x0 + 0.1 * k;
+		const double x = back ? -along : along;
+		const Eigen::Vector2d s(x, 0);
+		const Eigen::Vector2d shift(scale_error * x, 0);
+		const double dist = (c - s).norm();
+		const double view = std::atan2(c.y() - s.y(), c.x() - s.x());
+		const double half = std::asin(r / dist);
+		for (double b = -half; b <= half; b += 0.2 * M_PI / 180)
+		{
+			const double a = view + b;
+			const Eigen::Vector2d dir(std::cos(a), std::sin(a));
+			const double bb = (s - c).dot(dir),
+			             cc = (s - c).squaredNorm() - r * r;
+			if (bb * bb - cc < 0) continue;
+			p.push_back(s + shift +
+			            (-bb - std::sqrt(bb * bb - cc) + noise(rng)) * dir);
+			d.push_back(dir);
+			time.push_back(t0 + 0.1 * k);
+		}
+	}
+}
+}  // namespace
+
 // A stem passed by on a straight walk, in a map whose odometry under-
 // estimates the distance walked by 0.3 % (the drift of forest-sim's
 // handheld odometry is 0.13 %): the stem's points move along the walk while
@@ -139,28 +176,7 @@ TEST(CircleFit, AlongRayDriftDuringAPass)
 	{
 		Points2D p, d;
 		std::vector<double> time;
-		// 10 Hz, 1 m/s, x from -15 to 15 m; 0.2° azimuth steps.
-		for (int k = 0; k <= 300; k++)
-		{
-			const double x = -15 + 0.1 * k + 0.01 * t;
-			const Eigen::Vector2d s(x, 0);
-			const Eigen::Vector2d shift(scale_error * x, 0);
-			const double dist = (c - s).norm();
-			const double view = std::atan2(c.y() - s.y(), c.x() - s.x());
-			const double half = std::asin(r / dist);
-			for (double b = -half; b <= half; b += 0.2 * M_PI / 180)
-			{
-				const double a = view + b;
-				const Eigen::Vector2d dir(std::cos(a), std::sin(a));
-				const double bb = (s - c).dot(dir),
-				             cc = (s - c).squaredNorm() - r * r;
-				if (bb * bb - cc < 0) continue;
-				p.push_back(s + shift +
-				            (-bb - std::sqrt(bb * bb - cc) + g(rng)) * dir);
-				d.push_back(dir);
-				time.push_back(0.1 * k);
-			}
-		}
+		passBy(c, r, scale_error, -15 + 0.01 * t, false, 0, rng, g, p, d, time);
 		const auto f = fitCircleRobust(p, opts());
 		ASSERT_TRUE(f.ok);
 		Circle still = f.circle, moving = f.circle;
@@ -202,32 +218,11 @@ TEST(CircleFit, AlongRayDriftPerPass)
 	{
 		Points2D p, d;
 		std::vector<double> time;
-		for (int pass = 0; pass < 2; pass++)
-			for (int k = 0; k <= 300; k++)
-			{
-				// Pass 0: x from -15 to 15 m; pass 1, 300 s later, back.
-				const double along = -15 + 0.1 * k + 0.01 * t;
-				const double x = pass == 0 ? along : -along;
-				const Eigen::Vector2d s(x, 0);
-				// Squashed along the walk about the pass's middle: the
-				// same shift field in x for both directions.
-				const Eigen::Vector2d shift(scale_error * x, 0);
-				const double dist = (c - s).norm();
-				const double view = std::atan2(c.y() - s.y(), c.x() - s.x());
-				const double half = std::asin(r / dist);
-				for (double b = -half; b <= half; b += 0.2 * M_PI / 180)
-				{
-					const double a = view + b;
-					const Eigen::Vector2d dir(std::cos(a), std::sin(a));
-					const double bb = (s - c).dot(dir),
-					             cc = (s - c).squaredNorm() - r * r;
-					if (bb * bb - cc < 0) continue;
-					p.push_back(s + shift +
-					            (-bb - std::sqrt(bb * bb - cc) + g(rng)) * dir);
-					d.push_back(dir);
-					time.push_back(300.0 * pass + 0.1 * k);
-				}
-			}
+		// There, and 300 s later back: the same shift field in x (squashed
+		// along each walk about its middle), opposite drifts in time.
+		passBy(c, r, scale_error, -15 + 0.01 * t, false, 0, rng, g, p, d, time);
+		passBy(c, r, scale_error, -15 + 0.01 * t, true, 300, rng, g, p, d,
+		       time);
 		const auto f = fitCircleRobust(p, opts());
 		ASSERT_TRUE(f.ok);
 		Circle one = f.circle, per_pass = f.circle;
