@@ -1,5 +1,4 @@
 #include <forest_slam/core/config.h>
-#include <forest_slam/core/flat_hash_map.h>
 #include <forest_slam/features/feature_extractor.h>
 
 #include <Eigen/LU>
@@ -72,6 +71,17 @@ Eigen::Vector3d eigenvalues3(const Eigen::Matrix3d& A)
 	const double hi = q + 2 * p * std::cos(phi);
 	const double lo = q + 2 * p * std::cos(phi + 2 * M_PI / 3);
 	return Eigen::Vector3d(lo, 3 * q - hi - lo, hi);
+}
+/** A deterministic scramble of an index (an integer hash), for an order
+ * that favours no position. */
+inline uint32_t scatterHash(uint32_t x)
+{
+	x ^= x >> 16;
+	x *= 0x7feb352dU;
+	x ^= x >> 15;
+	x *= 0x846ca68bU;
+	x ^= x >> 16;
+	return x;
 }
 }  // namespace
 
@@ -238,8 +248,8 @@ Features extractFeatures(const std::vector<FeatureInputPoint>& pts,
 				          const float sa = out.smoothness[line[a]],
 				                      sc = out.smoothness[line[c]];
 				          if (sa != sc) return sa > sc;
-				          const uint64_t ha = core::mixKey(line[a]),
-				                         hc = core::mixKey(line[c]);
+				          const uint32_t ha = scatterHash(line[a]),
+				                         hc = scatterHash(line[c]);
 				          return ha < hc || (ha == hc && a < c);
 			          });
 			std::sort(planar_order.begin(), planar_order.end(),
