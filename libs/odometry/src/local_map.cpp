@@ -4,6 +4,7 @@
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <limits>
 #if defined(__SSE2__)
@@ -12,6 +13,13 @@
 
 namespace forest_slam::odometry
 {
+void LocalMap::changed()
+{
+	// Unique over all maps: a thread's cached fits never outlive their map.
+	static std::atomic<uint64_t> counter{0};
+	generation_ = ++counter;
+}
+
 size_t LocalMap::memoryBytes() const
 {
 	size_t n =
@@ -34,6 +42,14 @@ void LocalMapOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 	FS_LOAD(c, s, max_points_per_voxel);
 	FS_LOAD(c, s, min_points_per_plane);
 	FS_LOAD(c, s, radius_m);
+	FS_LOAD(c, s, stem_model);
+	FS_LOAD(c, s, stem_fit_radius_m);
+	FS_LOAD(c, s, stem_fit_half_height_m);
+	FS_LOAD(c, s, stem_min_points);
+	FS_LOAD(c, s, stem_min_radius_m);
+	FS_LOAD(c, s, stem_max_radius_m);
+	FS_LOAD(c, s, stem_max_rmse_m);
+	FS_LOAD(c, s, stem_min_arc_deg);
 	const std::string where = core::configOrigin(c) + ": [" + s + "] ";
 	if (!(cell_m > 0) || !(radius_m > 0) || !(planar_spacing_m >= 0) ||
 	    !(edge_spacing_m >= 0) || !(coarse_voxel_m >= 0) ||
@@ -47,6 +63,16 @@ void LocalMapOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 		    where +
 		    "max_points_per_cell must be >= 2, "
 		    "max_points_per_voxel and min_points_per_plane >= 3");
+	if (!(stem_fit_radius_m > 0) || !(stem_fit_half_height_m > 0) ||
+	    stem_min_points < 5 || !(stem_min_radius_m > 0) ||
+	    !(stem_max_radius_m > stem_min_radius_m) || !(stem_max_rmse_m > 0) ||
+	    !(stem_min_arc_deg >= 0 && stem_min_arc_deg <= 360))
+		throw core::ConfigError(
+		    where +
+		    "stem_fit_radius_m, stem_fit_half_height_m, stem_min_radius_m "
+		    "and stem_max_rmse_m must be > 0, stem_max_radius_m > "
+		    "stem_min_radius_m, stem_min_points >= 5, stem_min_arc_deg in "
+		    "0..360");
 }
 
 void LocalMapOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
@@ -61,6 +87,14 @@ void LocalMapOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
 	c.write(s, "max_points_per_voxel", max_points_per_voxel);
 	c.write(s, "min_points_per_plane", min_points_per_plane);
 	c.write(s, "radius_m", radius_m);
+	c.write(s, "stem_model", stem_model);
+	c.write(s, "stem_fit_radius_m", stem_fit_radius_m);
+	c.write(s, "stem_fit_half_height_m", stem_fit_half_height_m);
+	c.write(s, "stem_min_points", stem_min_points);
+	c.write(s, "stem_min_radius_m", stem_min_radius_m);
+	c.write(s, "stem_max_radius_m", stem_max_radius_m);
+	c.write(s, "stem_max_rmse_m", stem_max_rmse_m);
+	c.write(s, "stem_min_arc_deg", stem_min_arc_deg);
 }
 
 namespace
@@ -153,6 +187,7 @@ void LocalMap::addPoint(PointCell& c, float min_d2, const Eigen::Vector3f& p)
 void LocalMap::insert(const std::vector<Eigen::Vector3f>& edges,
                       const std::vector<Eigen::Vector3f>& planar)
 {
+	changed();
 	const float pd2 =
 	    static_cast<float>(o_.planar_spacing_m * o_.planar_spacing_m);
 	const float ed2 = static_cast<float>(o_.edge_spacing_m * o_.edge_spacing_m);
@@ -233,6 +268,7 @@ void LocalMap::transform(const Eigen::Isometry3d& T)
 
 void LocalMap::prune(const Eigen::Vector3d& centre)
 {
+	changed();
 	const double r2 = o_.radius_m * o_.radius_m;
 	coarse_.eraseIf(
 	    [&](Key, const PlaneVoxel& v)
@@ -379,6 +415,194 @@ void LocalMap::knn(const PointGrid& g, const Eigen::Vector3f& x, int k,
 	}
 }
 
+namespace
+{
+/** A stem section: circle centre c (relative to the fit's centre, at its
+ * height), lean l (centre moves by l per metre up), radius r. */
+struct StemCircle
+{
+	Eigen::Vector2d c = Eigen::Vector2d::Zero(), l = Eigen::Vector2d::Zero();
+	double r = 0;
+};
+
+/** Robust geometric fit of a leaning circle to points (x, y, height; relative
+ * to the cell centre), accepted if it is a stem by the options' tests:
+ * Kasa's algebraic circle as the start (walls, whose circle is metres wide,
+ * stop there), then Gauss-Newton on the orthogonal distances with a Huber
+ * weight (scale stem_max_rmse_m); inliers within three scales give the RMSE
+ * and the arc. */
+bool fitStemCircle(const std::vector<Eigen::Vector3d>& q,
+                   const LocalMapOptions& o, StemCircle& f)
+{
+	const size_t n = q.size();
+	if (n < 5) return false;
+	Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
+	Eigen::Vector3d b = Eigen::Vector3d::Zero();
+	for (const auto& p : q)
+	{
+		const Eigen::Vector3d row(p.x(), p.y(), 1.0);
+		const double z = -(p.x() * p.x() + p.y() * p.y());
+		A.noalias() += row * row.transpose();
+		b += z * row;
+	}
+	const Eigen::Vector3d s = A.ldlt().solve(b);
+	f.c = Eigen::Vector2d(-0.5 * s[0], -0.5 * s[1]);
+	const double r2 = f.c.squaredNorm() - s[2];
+	if (!(r2 > 0) || !std::isfinite(r2)) return false;
+	f.r = std::sqrt(r2);
+	if (f.r > 2 * o.stem_max_radius_m) return false;
+	f.l.setZero();
+	// 5 parameters: c (2), l (2), r; a weak prior keeps the lean small
+	// (a short band of points hardly sees it).
+	constexpr double kLeanPrior = 1.0 / (0.1 * 0.1);
+	const double huber = o.stem_max_rmse_m;
+	for (int it = 0; it < 6; it++)
+	{
+		Eigen::Matrix<double, 5, 5> H = Eigen::Matrix<double, 5, 5>::Zero();
+		Eigen::Matrix<double, 5, 1> g = Eigen::Matrix<double, 5, 1>::Zero();
+		for (const auto& p : q)
+		{
+			const Eigen::Vector2d d = p.head<2>() - f.c - f.l * p.z();
+			const double rho = d.norm();
+			if (rho < 1e-9) continue;
+			const double e = rho - f.r;
+			const double w = std::abs(e) <= huber ? 1.0 : huber / std::abs(e);
+			const Eigen::Vector2d u = d / rho;
+			Eigen::Matrix<double, 5, 1> J;
+			J << -u, -u * p.z(), -1.0;
+			H.template selfadjointView<Eigen::Upper>().rankUpdate(J, w);
+			g += w * e * J;
+		}
+		H.template triangularView<Eigen::StrictlyLower>() = H.transpose();
+		H(2, 2) += kLeanPrior, H(3, 3) += kLeanPrior;
+		g.segment<2>(2) += kLeanPrior * f.l;
+		const Eigen::Matrix<double, 5, 1> dx = H.ldlt().solve(-g);
+		if (!dx.allFinite()) return false;
+		f.c += dx.head<2>(), f.l += dx.segment<2>(2), f.r += dx[4];
+		if (dx.head<2>().norm() < 1e-4 && std::abs(dx[4]) < 1e-4) break;
+	}
+	if (!(f.r >= o.stem_min_radius_m && f.r <= o.stem_max_radius_m))
+		return false;
+	double sq = 0;
+	int inliers = 0;
+	for (const auto& p : q)
+	{
+		const Eigen::Vector2d d = p.head<2>() - f.c - f.l * p.z();
+		const double e = d.norm() - f.r;
+		if (std::abs(e) > 3 * huber) continue;
+		sq += e * e;
+		inliers++;
+	}
+	if (inliers < o.stem_min_points || sq > inliers * huber * huber)
+		return false;
+	// The arc the inliers cover: 10 deg bins, 360 minus the longest run of
+	// empty ones (a shrub's or a wall's points can fit a stem-sized circle
+	// on a short arc).
+	constexpr int kBins = 36;
+	bool seen[kBins] = {};
+	for (const auto& p : q)
+	{
+		const Eigen::Vector2d d = p.head<2>() - f.c - f.l * p.z();
+		if (std::abs(d.norm() - f.r) > 3 * huber) continue;
+		const double a = std::atan2(d.y(), d.x()) + M_PI;  // 0..2 pi
+		seen[std::min(kBins - 1, static_cast<int>(a * kBins / (2 * M_PI)))] =
+		    true;
+	}
+	int run = 0, longest = 0;
+	for (int i = 0; i < 2 * kBins; i++)
+	{
+		run = seen[i % kBins] ? 0 : run + 1;
+		longest = std::max(longest, std::min(run, kBins));
+	}
+	return 360.0 * (kBins - longest) / kBins >= o.stem_min_arc_deg;
+}
+}  // namespace
+
+LocalMap::StemCell LocalMap::fitStemAt(const Eigen::Vector3f& centre) const
+{
+	StemCell cell;
+	cell.z0 = centre.z();
+	const double R = o_.stem_fit_radius_m, hh = o_.stem_fit_half_height_m;
+	const double s = o_.cell_m;
+	thread_local std::vector<Eigen::Vector3d> q;
+	q.clear();
+	const float R2 = static_cast<float>(R * R);
+	auto range = [&](double v, double e, int64_t& a, int64_t& b)
+	{
+		a = static_cast<int64_t>(std::floor((v - e) / s));
+		b = static_cast<int64_t>(std::floor((v + e) / s));
+	};
+	int64_t i0, i1, j0, j1, k0, k1;
+	range(centre.x(), R, i0, i1);
+	range(centre.y(), R, j0, j1);
+	range(centre.z(), hh, k0, k1);
+	for (const PointGrid* g : {&planar_, &edges_})
+		for (int64_t i = i0; i <= i1; i++)
+			for (int64_t j = j0; j <= j1; j++)
+				for (int64_t k = k0; k <= k1; k++)
+				{
+					const PointCell* c = g->find(key(i, j, k));
+					if (!c) continue;
+					for (uint32_t m = 0; m < c->n; m++)
+					{
+						const Eigen::Vector3f p = c->point(m);
+						const float dz = p.z() - centre.z();
+						if (std::abs(dz) > hh) continue;
+						const Eigen::Vector2f d =
+						    p.head<2>() - centre.head<2>();
+						if (d.squaredNorm() > R2) continue;
+						q.emplace_back(d.x(), d.y(), dz);
+					}
+				}
+	if (static_cast<int>(q.size()) < o_.stem_min_points) return cell;
+	StemCircle f;
+	if (!fitStemCircle(q, o_, f)) return cell;
+	cell.ok = true;
+	cell.centre = f.c + centre.head<2>().cast<double>();
+	cell.lean = f.l;
+	cell.r = f.r;
+	return cell;
+}
+
+bool LocalMap::stemRow(const Eigen::Vector3f& x, double gate,
+                       PlaneRow& out) const
+{
+	// Fits are shared by the queries in one small cell and kept until the
+	// map changes (each thread its own table: the queries run in parallel).
+	thread_local uint64_t cached_generation = 0;
+	thread_local core::FlatHashMap<StemCell> cache;
+	if (cached_generation != generation_)
+	{
+		cache.clear();
+		cached_generation = generation_;
+	}
+	const double cs = kStemCellM, zs = kStemCellHeightM;
+	const int64_t i = static_cast<int64_t>(std::floor(x.x() / cs)),
+	              j = static_cast<int64_t>(std::floor(x.y() / cs)),
+	              k = static_cast<int64_t>(std::floor(x.z() / zs));
+	bool fresh = false;
+	StemCell& cell = cache.tryEmplace(key(i, j, k), &fresh);
+	if (fresh)
+		cell = fitStemAt(Eigen::Vector3f(float((i + 0.5) * cs),
+		                                 float((j + 0.5) * cs),
+		                                 float((k + 0.5) * zs)));
+	if (!cell.ok) return false;
+	// The residual e(x) = |x_xy - c(x_z)| - r, with the centre moving with
+	// the lean, linearised at x: its gradient (u, -u.lean) is the normal (a
+	// leaning stem ties height to the horizontal distance).
+	const Eigen::Vector2d c = cell.centre + cell.lean * (x.z() - cell.z0);
+	const Eigen::Vector2d d = x.head<2>().cast<double>() - c;
+	const double rho = d.norm();
+	const double e = rho - cell.r;
+	if (rho < 1e-6 || std::abs(e) > gate) return false;
+	const Eigen::Vector2d u = d / rho;
+	const Eigen::Vector3d g(u.x(), u.y(), -u.dot(cell.lean));
+	const double gn = g.norm();
+	out.n = g / gn;
+	out.d = (e - g.dot(x.cast<double>())) / gn;
+	return true;
+}
+
 bool LocalMap::matchPlane(const Eigen::Vector3f& x, double gate,
                           const RegistrationOptions& o, PlaneRow& out) const
 {
@@ -397,6 +621,9 @@ bool LocalMap::matchPlane(const Eigen::Vector3f& x, double gate,
 			// would bias the pose sideways.
 			out.n = s.vecs.col(0).normalized();
 			out.d = -out.n.dot(best.front().second.cast<double>());
+			if (o_.stem_model && std::abs(out.n.z()) < 0.5 &&
+			    stemRow(x, gate, out))
+				return true;
 			if (std::abs(out.n.dot(x.cast<double>()) + out.d) <= gate)
 				return true;
 		}
@@ -415,7 +642,16 @@ bool LocalMap::matchLine(const Eigen::Vector3f& x, double gate,
 		return false;
 	const Shape s = shapeOf(best);
 	if (s.ev[2] < o.line_ratio * s.ev[1]) return false;
-	lineToPlanes(s.mean, s.vecs.col(2).normalized(), a, b);
+	const Eigen::Vector3d dir = s.vecs.col(2).normalized();
+	if (o_.stem_model && std::abs(dir.z()) > 0.8 && stemRow(x, gate, a))
+	{
+		// One row: the distance to the stem's surface; the second carries
+		// nothing.
+		b.n.setZero();
+		b.d = 0;
+		return true;
+	}
+	lineToPlanes(s.mean, dir, a, b);
 	return true;
 }
 

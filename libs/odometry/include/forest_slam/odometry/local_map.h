@@ -38,6 +38,20 @@ struct LocalMapOptions : public mrpt::config::CLoadableOptions
 	int max_points_per_voxel = 800;
 	int min_points_per_plane = 10;
 	double radius_m = 60.0;  ///< cells farther from the sensor are dropped
+	/** Stem model: a planar point on a vertical surface, or an edge on a
+	 * vertical line, is matched to the circle (a vertical cylinder with a
+	 * lean) fitted to the map's points around it, when that fits a stem:
+	 * the residual is the distance to the stem's surface. A plane or line
+	 * through the nearest map points lies on the part of the stem seen from
+	 * earlier views (silhouettes move round a stem with the view). */
+	bool stem_model = true;
+	double stem_fit_radius_m = 0.5;       ///< map points within (xy) [m]
+	double stem_fit_half_height_m = 0.3;  ///< and within this in z [m]
+	int stem_min_points = 12;             ///< inliers of the fit
+	double stem_min_radius_m = 0.03;
+	double stem_max_radius_m = 0.5;
+	double stem_max_rmse_m = 0.03;  ///< robust RMSE of the fit [m]
+	double stem_min_arc_deg = 60;   ///< arc the inliers cover [deg]
 
 	void loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 	                        const std::string& section) override;
@@ -54,6 +68,7 @@ class LocalMap : public RegistrationTarget
 	                  double plane_flatness = 0.1)
 	    : o_(o), plane_flatness_(plane_flatness)
 	{
+		changed();
 	}
 
 	/** Adds map-frame points. */
@@ -66,6 +81,7 @@ class LocalMap : public RegistrationTarget
 	void transform(const Eigen::Isometry3d& T);
 	void clear()
 	{
+		changed();
 		planar_.clear();
 		coarse_.clear();
 		edges_.clear();
@@ -143,6 +159,26 @@ class LocalMap : public RegistrationTarget
 	bool coarsePlane(const Eigen::Vector3d& x, double gate,
 	                 PlaneRow& out) const;
 	void refit(PlaneVoxel& v) const;
+	/** A stem section fitted to the map's points around a small cell. */
+	struct StemCell
+	{
+		bool ok = false;
+		Eigen::Vector2d centre = Eigen::Vector2d::Zero();  ///< at height z0
+		Eigen::Vector2d lean =
+		    Eigen::Vector2d::Zero();  ///< centre shift / m up
+		double r = 0;
+		float z0 = 0;
+	};
+	/** Cells sharing one stem fit: small against a stem, so the fit around
+	 * the cell's centre holds for every query in it [m]. */
+	static constexpr double kStemCellM = 0.1, kStemCellHeightM = 0.2;
+	StemCell fitStemAt(const Eigen::Vector3f& centre) const;
+	/** The stem surface's tangent plane at x, if the map's points around x
+	 * fit a stem (LocalMapOptions::stem_model). */
+	bool stemRow(const Eigen::Vector3f& x, double gate, PlaneRow& out) const;
+	/** A new generation_: the map changed (cached stem fits are stale). */
+	void changed();
+	uint64_t generation_ = 0;
 
 	LocalMapOptions o_;
 	double plane_flatness_;
