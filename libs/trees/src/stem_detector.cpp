@@ -15,6 +15,8 @@ namespace
 {
 constexpr size_t kSectionFitPoints = 300;
 constexpr size_t kRingSearchPoints = 400;
+/** findRing's samples at least, however good the first ones were. */
+constexpr int kMinRingSamples = 30;
 // The solid-ring DBH fit (fitSolidRing): for stems whose circle has an
 // RMSE above kSolidMinRmseM (foliage in the ring; a clean ring under 2.5 cm
 // range noise stays below 3 cm) seen over at least kSolidMinArcDeg, taken
@@ -121,7 +123,11 @@ CircleFitResult findRing(const Points2D& p, const TreeOptions& o, double rmin,
 	};
 	Circle best;
 	long best_score = 0;
-	for (int it = 0; it < o.ransac_iterations; it++)
+	// Stops once a sample all on the ring is likely drawn; the ring's share
+	// of the cluster is a lower bound on the chance (the second and third
+	// samples are drawn near the first).
+	int needed = o.ransac_iterations;
+	for (int it = 0; it < needed; it++)
 	{
 		const size_t a = pick(rng);
 		size_t bc[2] = {a, a};
@@ -142,8 +148,14 @@ CircleFitResult findRing(const Points2D& p, const TreeOptions& o, double rmin,
 		if (!fitCircleKasa(three, cand) || cand.radius_m < rmin ||
 		    cand.radius_m > rmax)
 			continue;
-		const long sc = score(cand, nullptr).first;
-		if (sc > best_score) best_score = sc, best = cand;
+		const auto [sc, inside] = score(cand, nullptr);
+		if (sc > best_score)
+		{
+			best_score = sc, best = cand;
+			needed = ransacIterationsNeeded(
+			    double(sc + 2 * inside) / double(p.size()), kMinRingSamples,
+			    o.ransac_iterations);
+		}
 	}
 	if (best_score < o.min_slice_points) return res;
 	Points2D ring;

@@ -22,7 +22,7 @@ struct CircleFitOptions
 {
 	double min_radius_m = 0.01;
 	double max_radius_m = 1.0;
-	int ransac_iterations = 300;
+	int ransac_iterations = 300;  ///< at most (fewer once a sample is good)
 	double ransac_inlier_m = 0.015;
 	uint32_t seed = 1;
 	double arc_bin_deg = 5;
@@ -49,6 +49,12 @@ bool fitCircleKasa(const Points2D& p, Circle& out);
  * while stubs and leaves beyond ~4.7 σ get zero weight. */
 bool refineCircleGeometric(const Points2D& p, Circle& c,
                            double min_scale_m = 0.002, int max_iterations = 50);
+
+/** RANSAC iterations that draw, with 99.9 % confidence, at least one
+ * all-inlier 3-point sample when a share `inlier_share` of the points are
+ * inliers; at least `min_iterations`, at most `max_iterations`. */
+int ransacIterationsNeeded(double inlier_share, int min_iterations,
+                           int max_iterations);
 
 /** The full robust fit: candidates from Kåsa on all points and from RANSAC on
  * 3-point samples, each refined geometrically; the one with the lower robust
