@@ -386,6 +386,32 @@ TEST(CircleFit, FullArcAndBranchStub)
 	          0.01);  // the stub does pull a plain fit
 }
 
+// RANSAC stops once an all-inlier 3-point sample is likely (99.9 %): about
+// 10 samples at 80 % inliers, the cap when few points are inliers, and the
+// fit still finds a stem with a third of its cluster clutter (about 20
+// samples drawn). (With more clutter than stem points the MAD scale of the
+// refinement breaks down, 300 samples or not: the ring search handles
+// such clusters.)
+TEST(CircleFit, RansacStopsWhenACleanSampleIsLikely)
+{
+	EXPECT_EQ(ransacIterationsNeeded(0.8, 1, 300), 10);  // ln 0.001/ln 0.488
+	EXPECT_EQ(ransacIterationsNeeded(0.5, 1, 300), 52);
+	EXPECT_EQ(ransacIterationsNeeded(0.8, 20, 300), 20);
+	EXPECT_EQ(ransacIterationsNeeded(0.1, 20, 300), 300);
+	EXPECT_EQ(ransacIterationsNeeded(0.0, 20, 300), 300);
+	EXPECT_EQ(ransacIterationsNeeded(1.0, 20, 300), 20);
+
+	std::mt19937 rng(11);
+	auto p = arc(rng, {0.3, -0.2}, 0.15, 0, 360, 200, 0.004);
+	std::uniform_real_distribution<double> u(-0.5, 0.5);
+	for (int i = 0; i < 100; i++) p.emplace_back(0.3 + u(rng), -0.2 + u(rng));
+	const auto f = fitCircleRobust(p, opts());
+	ASSERT_TRUE(f.ok);
+	EXPECT_NEAR(f.circle.radius_m, 0.15, 0.003);
+	EXPECT_NEAR((f.circle.centre - Eigen::Vector2d(0.3, -0.2)).norm(), 0,
+	            0.003);
+}
+
 // A stem inside a shrub: foliage points all around it, outside its ring
 // (the stem is solid). The robust fit takes the foliage into a larger
 // ring; the solid-ring fit finds the stem. On a clean ring it changes
