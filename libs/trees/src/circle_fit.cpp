@@ -538,13 +538,22 @@ CircleFitResult fitCircleRobust(const Points2D& p, const CircleFitOptions& o)
 			    o.ransac_inlier_m)
 				in.push_back(q);
 		Circle c = best;
-		if (fitCircleKasa(in, c)) starts.push_back(c);
+		// The consensus set's circle first: it is the start nearest the
+		// answer on a stem with stubs.
+		if (fitCircleKasa(in, c)) starts.insert(starts.begin(), c);
 		starts.push_back(best);
 	}
 
 	double best_cost = std::numeric_limits<double>::infinity();
 	for (auto c : starts)
 	{
+		// A start within the RANSAC tolerance of the best refined circle so
+		// far lies in its basin: refining it finds the same circle (the
+		// refinements were most of the fit's time).
+		if (res.ok &&
+		    (c.centre - res.circle.centre).norm() <= o.ransac_inlier_m &&
+		    std::abs(c.radius_m - res.circle.radius_m) <= o.ransac_inlier_m)
+			continue;
 		if (!refineCircleGeometric(p, c)) continue;
 		if (c.radius_m < o.min_radius_m || c.radius_m > o.max_radius_m)
 			continue;
