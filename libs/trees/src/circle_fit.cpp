@@ -496,8 +496,8 @@ CircleFitResult fitCircleRobust(const Points2D& p, const CircleFitOptions& o)
 
 	// RANSAC: the 3-point circle with the most points within ransac_inlier_m,
 	// so that a branch stub or leaves cannot pull the start. It stops once
-	// an all-inlier sample is likely to have been drawn (about 10 samples
-	// for a clean stem, the fixed 300 were a tenth of a mapping run's CPU).
+	// an all-inlier sample is likely to have been drawn: about 10 samples
+	// for a clean stem, where a fixed count drew ransac_iterations (300).
 	std::mt19937 rng(o.seed);
 	std::uniform_int_distribution<size_t> pick(0, p.size() - 1);
 	Circle best;

@@ -179,8 +179,9 @@ class LocalMap : public RegistrationTarget
 	bool stemRow(const Eigen::Vector3f& x, double gate, PlaneRow& out) const;
 	/** Stem fits by cell, shared by the query threads and dropped whenever
 	 * the map changes. One table for both threads, not one each: they ask
-	 * for the same cells, and fitting them twice cost a fifth of the
-	 * registration's time. */
+	 * for the same cells, and fitted them twice (with the fit's normal
+	 * equations summed by hand, the handheld registration's median went
+	 * from 11.1 to 8.0-8.7 ms). */
 	struct StemCache
 	{
 		std::mutex mutex;
