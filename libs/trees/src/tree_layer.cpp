@@ -94,12 +94,8 @@ void TreeLayer::SortedVoxels::compact(size_t max_pending)
 	// The pass fills what was padding: 48 bytes per voxel either way.
 	static_assert(sizeof(Voxel) == 48, "stem-band voxel grew");
 	if (pending_.size() <= max_pending || pending_.empty()) return;
-	std::vector<Voxel> add;
-	add.reserve(pending_.size());
-	for (const auto& q : pending_) add.push_back(voxelOf(q));
-	pending_.clear();
-	pending_.shrink_to_fit();
-	mergeIn(add);
+	mergeIn(pending_);
+	std::vector<Voxel>().swap(pending_);
 }
 
 void TreeLayer::SortedVoxels::transform(const Eigen::Isometry3f& T)
@@ -279,11 +275,8 @@ void TreeLayer::SortedVoxels::loadInto(const core::SpillFile* f,
 	added.clear();  // in memory: all, or those added since spilled
 	for (const auto& v : voxels_)
 		if (inBox(v)) added.push_back(v);
-	for (const auto& q : pending_)
-	{
-		const Voxel v = voxelOf(q);
+	for (const auto& v : pending_)
 		if (inBox(v)) added.push_back(v);
-	}
 	if (spilled_ && spill_count_ > 0)
 	{
 		// Sorted on disk: the run of keys with x cells in [x0, x1], found by
@@ -383,23 +376,25 @@ void TreeLayer::SortedVoxels::mergeIn(std::vector<Voxel>& add)
 	changed_ = true;
 	std::sort(add.begin(), add.end(),
 	          [](const Voxel& a, const Voxel& b) { return voxelLess(a, b); });
-	std::vector<Voxel> merged;
-	merged.reserve(voxels_.size() + add.size());
-	auto push = [&](const Voxel& v)
-	{
-		if (!merged.empty() && sameVoxel(merged.back(), v))
-			combine(merged.back(), v);
+	// In place, from the back (a merged copy of the column, allocated
+	// afresh on every merge, came back as page faults): equal voxels end up
+	// next to each other, the older first as in a forward merge, and are
+	// then summed in that order.
+	const size_t n_old = voxels_.size();
+	voxels_.resize(n_old + add.size());
+	size_t i = n_old, j = add.size(), w = voxels_.size();
+	while (j > 0)
+		if (i > 0 && voxelLess(add[j - 1], voxels_[i - 1]))
+			voxels_[--w] = voxels_[--i];
 		else
-			merged.push_back(v);
-	};
-	size_t i = 0, j = 0;
-	while (i < voxels_.size() || j < add.size())
-		if (j == add.size() ||
-		    (i < voxels_.size() && !voxelLess(add[j], voxels_[i])))
-			push(voxels_[i++]);
+			voxels_[--w] = add[--j];
+	size_t u = 0;
+	for (size_t k = 1; k < voxels_.size(); k++)
+		if (sameVoxel(voxels_[u], voxels_[k]))
+			combine(voxels_[u], voxels_[k]);
 		else
-			push(add[j++]);
-	voxels_.swap(merged);
+			voxels_[++u] = voxels_[k];
+	voxels_.resize(u + 1);
 }
 
 void TreeLayer::SortedVoxels::spillMerged(core::SpillFile& f)
@@ -556,24 +551,56 @@ void TreeLayer::addScan(const std::vector<Eigen::Vector3f>& pts,
 	const float inv_g = float(1.0 / o_.layer_ground_cell_m);
 	const Eigen::Vector2f s2 = sensor.head<2>().cast<float>();
 	// Pass 1: lowest point per ground cell (the scan's own ground counts
-	// before its points are tested against it).
-	std::vector<std::pair<Column*, const Eigen::Vector3f*>> where(
-	    pts.size(), {nullptr, nullptr});
-	ColumnKey last_key{INT32_MIN, INT32_MIN};
-	Column* last_col = nullptr;
+	// before its points are tested against it). The scan's cells first, in
+	// a square grid around the sensor (an array, no hashing): then one
+	// lookup per cell into its column's store instead of one per point
+	// (the per-point lookups were a quarter of the store's CPU). A cell
+	// belongs to the column of its centre, and so do its points.
+	const double cell_m = o_.layer_ground_cell_m;
+	const int half = int(std::ceil(o_.layer_max_range_m / cell_m)) + 2;
+	const int side = 2 * half + 1;
+	const int64_t ox = int64_t(std::floor(sensor.x() * inv_g)) - half,
+	              oy = int64_t(std::floor(sensor.y() * inv_g)) - half;
+	ScanCells& sc = scan_cells_;
+	sc.lowest_of_cell.resize(size_t(side) * side, -1);
+	sc.cell_of_point.assign(pts.size(), -1);
+	sc.touched.clear();
 	for (size_t i = 0; i < pts.size(); i++)
 	{
 		const auto& p = pts[i];
 		if (!p.allFinite() || (p.head<2>() - s2).squaredNorm() > max_r2)
 			continue;
-		const ColumnKey ck = columnOf(p.x(), p.y());
+		const int64_t lx = int64_t(std::floor(p.x() * inv_g)) - ox,
+		              ly = int64_t(std::floor(p.y() * inv_g)) - oy;
+		if (lx < 0 || ly < 0 || lx >= side || ly >= side) continue;
+		const int32_t c = int32_t(lx + side * ly);
+		sc.cell_of_point[i] = c;
+		int32_t& low = sc.lowest_of_cell[size_t(c)];
+		if (low < 0)
+			low = int32_t(i), sc.touched.push_back(c);
+		else if (p.z() < pts[size_t(low)].z())
+			low = int32_t(i);
+	}
+	// Merged into the columns' stores; each cell's entry (a stable pointer
+	// into the unordered_map) and column kept for pass 2.
+	sc.column_of_cell.resize(sc.lowest_of_cell.size());
+	sc.store_of_cell.resize(sc.lowest_of_cell.size());
+	ColumnKey last_key{INT32_MIN, INT32_MIN};
+	Column* last_col = nullptr;
+	for (const int32_t c : sc.touched)
+	{
+		const int64_t gx = ox + c % side, gy = oy + c / side;
+		const ColumnKey ck =
+		    columnOf((double(gx) + 0.5) * cell_m, (double(gy) + 0.5) * cell_m);
 		if (!last_col || !(ck == last_key))
 			last_col = &column(ck), last_key = ck;
-		const map::VoxelKey g{int32_t(std::floor(p.x() * inv_g)),
-		                      int32_t(std::floor(p.y() * inv_g)), 0};
-		auto [it, inserted] = last_col->lowest.try_emplace(g, p);
+		const Eigen::Vector3f& p = pts[size_t(sc.lowest_of_cell[size_t(c)])];
+		auto [it, inserted] = last_col->lowest.try_emplace(
+		    map::VoxelKey{int32_t(gx), int32_t(gy), 0}, p);
 		if (!inserted && p.z() < it->second.z()) it->second = p;
-		where[i] = {last_col, &it->second};
+		sc.column_of_cell[size_t(c)] = last_col;
+		sc.store_of_cell[size_t(c)] = &it->second;
+		sc.lowest_of_cell[size_t(c)] = -1;  // the grid is clean for next scan
 	}
 	// Pass 2: the stem band above the lowest point of the cell so far;
 	// near breast height tagged with the scan's time segment (the cell
@@ -597,8 +624,10 @@ void TreeLayer::addScan(const std::vector<Eigen::Vector3f>& pts,
 	             seg_hi = o_.dbh_height_m + o_.dbh_segment_band_half_m + 0.5;
 	for (size_t i = 0; i < pts.size(); i++)
 	{
-		auto [col, low] = where[i];
-		if (!col) continue;
+		const int32_t c = sc.cell_of_point[i];
+		if (c < 0) continue;
+		Column* col = sc.column_of_cell[size_t(c)];
+		const Eigen::Vector3f* low = sc.store_of_cell[size_t(c)];
 		const float h = pts[i].z() - low->z();
 		if (h < o_.layer_min_hag_m || h > o_.layer_max_hag_m) continue;
 		col->dirty = true;

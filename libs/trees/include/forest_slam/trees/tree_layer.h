@@ -159,7 +159,10 @@ class TreeLayer
 		void add(const Eigen::Vector3f& p, const Eigen::Vector3f& dir,
 		         uint32_t segment = 0, float time = 0, uint32_t pass = 0)
 		{
-			pending_.push_back({p, dir, segment, time, pass});
+			// As a one-point voxel: compact() sorts the buffer in place.
+			const uint64_t k = keyOf(p);
+			pending_.push_back(
+			    {k, p - centreOf(k), dir, 1, segment, time, pass});
 		}
 		/** Merges the buffer if it holds more than `max_pending` points
 		 * (into the voxels in memory: a spilled set's new voxels). */
@@ -213,7 +216,7 @@ class TreeLayer
 		void release()
 		{
 			std::vector<Voxel>().swap(voxels_);
-			std::vector<Pending>().swap(pending_);
+			std::vector<Voxel>().swap(pending_);
 			spilled_ = false;
 			changed_ = true;
 			on_disk_ = false;
@@ -253,7 +256,7 @@ class TreeLayer
 		size_t memoryBytes() const
 		{
 			return voxels_.capacity() * sizeof(Voxel) +
-			       pending_.capacity() * sizeof(Pending);
+			       pending_.capacity() * sizeof(Voxel);
 		}
 		/** No points buffered (compact() has nothing to do). */
 		bool compacted() const { return pending_.empty(); }
@@ -272,18 +275,12 @@ class TreeLayer
 			uint32_t pass;  ///< TreeLayer::startPass count; sorted by (key,
 			                ///< pass, segment)
 		};
-		struct Pending
-		{
-			Eigen::Vector3f p, dir;
-			uint32_t segment;
-			float time;
-			uint32_t pass;
-		};
 		double voxel_m_;
 		/** Sorted by key, pass, segment: every voxel, or while spilled
 		 * those added since (the same key may be on disk too). */
 		std::vector<Voxel> voxels_;
-		std::vector<Pending> pending_;
+		/** Points added since the last compact(), as one-point voxels. */
+		std::vector<Voxel> pending_;
 		bool spilled_ = false;
 		bool changed_ = true;   ///< since last written to the spill file
 		bool on_disk_ = false;  ///< spill_offset_/count_ hold a copy
@@ -298,12 +295,6 @@ class TreeLayer
 		 * two merged into a new region of `f` chunk by chunk. */
 		void spillMerged(core::SpillFile& f);
 		Eigen::Vector3f centreOf(uint64_t key) const;
-		/** A buffered point as a one-point voxel. */
-		Voxel voxelOf(const Pending& q) const
-		{
-			const uint64_t k = keyOf(q.p);
-			return {k, q.p - centreOf(k), q.dir, 1, q.segment, q.time, q.pass};
-		}
 		Eigen::Vector3f centroid(const Voxel& v) const
 		{
 			return centreOf(v.key) + v.sum / float(v.count);
@@ -319,6 +310,18 @@ class TreeLayer
 		std::vector<map::TreeRecord> trees;
 		bool dirty = false;
 	};
+
+	/** addScan's ground cells of one scan, kept between scans (cleared as
+	 * used): a square grid of layer_ground_cell_m cells around the sensor
+	 * holding the index of each cell's lowest point (-1: none), and for
+	 * the cells touched, their column and their entry in its `lowest`. */
+	struct ScanCells
+	{
+		std::vector<int32_t> lowest_of_cell, cell_of_point, touched;
+		std::vector<Column*> column_of_cell;
+		std::vector<const Eigen::Vector3f*> store_of_cell;
+	};
+	ScanCells scan_cells_;
 
 	TreeOptions o_;
 	double column_m_;
