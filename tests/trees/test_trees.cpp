@@ -13,6 +13,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <map>
 #include <random>
 
 using namespace forest_slam::trees;
@@ -488,6 +489,58 @@ TEST(SliceClustering, LeavesJoinedWithinLinkDistance)
 		size_t big = 0;
 		for (const auto& x : c) big += x.size() >= 100;
 		EXPECT_EQ(big, gap < 0.08 ? 1u : 2u) << "gap " << gap;
+	}
+}
+
+// thinToCells merges input that comes as a few sorted runs (the tree
+// layer's slices: one run per column read) instead of sorting it: the cells,
+// their centroids (summed in input order) and each point's cell must be the
+// same as by definition, with few runs and with many.
+TEST(SliceClustering, ThinToCellsSameOnSortedRunsAndAnyOrder)
+{
+	std::mt19937 rng(3);
+	std::uniform_real_distribution<double> u(-0.5, 0.5);
+	const double cell = 0.02;
+	auto keyOf = [&](const Eigen::Vector2d& q)
+	{
+		return std::make_pair(int64_t(std::floor(q.x() / cell)),
+		                      int64_t(std::floor(q.y() / cell)));
+	};
+	Points2D runs;  // three runs, each sorted by cell
+	for (int r = 0; r < 3; r++)
+	{
+		Points2D run(3000);
+		for (auto& q : run) q = {u(rng), u(rng)};
+		std::stable_sort(run.begin(), run.end(),
+		                 [&](const auto& a, const auto& b)
+		                 { return keyOf(a) < keyOf(b); });
+		runs.insert(runs.end(), run.begin(), run.end());
+	}
+	Points2D shuffled = runs;
+	std::shuffle(shuffled.begin(), shuffled.end(), rng);
+	for (const Points2D* in : {&runs, &shuffled})
+	{
+		// By definition: cells in key order, points summed in input order.
+		std::map<std::pair<int64_t, int64_t>, std::vector<size_t>> cells;
+		for (size_t i = 0; i < in->size(); i++)
+			cells[keyOf((*in)[i])].push_back(i);
+		std::vector<uint32_t> cell_of;
+		const Points2D out = thinToCells(*in, cell, &cell_of);
+		ASSERT_EQ(out.size(), cells.size());
+		size_t k = 0;
+		for (const auto& [key, idx] : cells)
+		{
+			Eigen::Vector2d sum = Eigen::Vector2d::Zero();
+			for (size_t i : idx)
+			{
+				sum += (*in)[i];
+				ASSERT_EQ(cell_of[i], k);
+			}
+			const Eigen::Vector2d c = sum / double(idx.size());
+			ASSERT_EQ(out[k].x(), c.x()) << "cell " << k;
+			ASSERT_EQ(out[k].y(), c.y()) << "cell " << k;
+			k++;
+		}
 	}
 }
 

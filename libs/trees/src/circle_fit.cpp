@@ -95,6 +95,8 @@ double tukeyWeight(double r, double s)
 	return t * t;
 }
 
+}  // namespace
+
 bool circleThrough3(const Eigen::Vector2d& a, const Eigen::Vector2d& b,
                     const Eigen::Vector2d& c, Circle& out)
 {
@@ -108,7 +110,6 @@ bool circleThrough3(const Eigen::Vector2d& a, const Eigen::Vector2d& b,
 	out.radius_m = u.norm();
 	return true;
 }
-}  // namespace
 
 bool fitCircleKasa(const Points2D& p, Circle& out)
 {
@@ -206,6 +207,18 @@ namespace
 /** Distance t along the ray q + t·d (d unit) from the circle's near
  * intersection to q (q = surface + t·d, so t > 0 behind the surface) and its
  * derivatives by (cx, cy, r); false if the ray misses the circle. */
+/** rayResidual's t only (the cost evaluations need no Jacobian). */
+bool rayDistance(const Eigen::Vector2d& q, const Eigen::Vector2d& d,
+                 const Circle& c, double& t)
+{
+	const Eigen::Vector2d a = q - c.centre;
+	const double ad = a.dot(d);
+	const double disc = ad * ad - a.squaredNorm() + c.radius_m * c.radius_m;
+	if (disc < 0) return false;
+	t = ad + std::sqrt(disc);
+	// rayResidual's test of a grazing ray: |F_t| = 2 |u . d| = 2 sqrt(disc).
+	return 2 * std::sqrt(disc) >= 1e-12;
+}
 bool rayResidual(const Eigen::Vector2d& q, const Eigen::Vector2d& d,
                  const Circle& c, double& t, Eigen::Vector3d& J)
 {
@@ -286,12 +299,11 @@ bool refineCircleAlongRays(const Points2D& p, const Points2D& dir, Circle& c,
 	auto cost = [&](const Eigen::VectorXd& v, double s)
 	{
 		double sum = 0;
-		Eigen::Vector3d J;
 		for (size_t i = 0; i < n; i++)
 		{
 			double t;
-			sum += rayResidual(p[i], dir[i], at(v, i), t, J) ? tukeyRho(t, s)
-			                                                 : tukeyRho(1e9, s);
+			sum += rayDistance(p[i], dir[i], at(v, i), t) ? tukeyRho(t, s)
+			                                              : tukeyRho(1e9, s);
 		}
 		return sum + 0.5 * s * s * inv_sv2 * v.tail(m - 3).squaredNorm();
 	};
@@ -300,6 +312,12 @@ bool refineCircleAlongRays(const Points2D& p, const Points2D& dir, Circle& c,
 	    n);
 	Eigen::MatrixXd H(m, m);
 	Eigen::VectorXd g(m);
+	std::vector<Eigen::Matrix<double, 5, 5>,
+	            Eigen::aligned_allocator<Eigen::Matrix<double, 5, 5>>>
+	    Hp(passes);
+	std::vector<Eigen::Matrix<double, 5, 1>,
+	            Eigen::aligned_allocator<Eigen::Matrix<double, 5, 1>>>
+	    gp(passes);
 	for (int it = 0; it < o.max_iterations; it++)
 	{
 		hits.clear();
@@ -310,25 +328,32 @@ bool refineCircleAlongRays(const Points2D& p, const Points2D& dir, Circle& c,
 		}
 		if (hits.size() < 3) return false;
 		const double s = madScale(hits, o.min_scale_m);
-		H.setZero();
-		g.setZero();
+		// A point has derivatives by (c, r) and its own pass's drift only:
+		// summed per pass in fixed 5x5 blocks (indexing the dynamic H per
+		// point was most of this loop), then placed.
+		for (int k = 0; k < passes; k++) Hp[k].setZero(), gp[k].setZero();
 		for (size_t i = 0; i < n; i++)
 		{
 			if (!hit[i]) continue;
 			const double w = tukeyWeight(r[i], s);
 			if (w == 0) continue;
-			const int k = 3 + 2 * pass[i];
 			const Eigen::Vector3d& J = Js[i];
-			const double Jv[2] = {J[0] * dt[i], J[1] * dt[i]};
-			// The rows of (c, r) and of this point's pass only.
-			const int idx[5] = {0, 1, 2, k, k + 1};
-			const double Jf[5] = {J[0], J[1], J[2], Jv[0], Jv[1]};
-			for (int a = 0; a < 5; a++)
-			{
-				g[idx[a]] += w * Jf[a] * r[i];
-				for (int b = 0; b < 5; b++)
-					H(idx[a], idx[b]) += w * Jf[a] * Jf[b];
-			}
+			Eigen::Matrix<double, 5, 1> Jf;
+			Jf << J[0], J[1], J[2], J[0] * dt[i], J[1] * dt[i];
+			Hp[pass[i]].noalias() += (w * Jf) * Jf.transpose();
+			gp[pass[i]].noalias() += (w * r[i]) * Jf;
+		}
+		H.setZero();
+		g.setZero();
+		for (int k = 0; k < passes; k++)
+		{
+			const int v = 3 + 2 * k;
+			H.topLeftCorner<3, 3>() += Hp[k].topLeftCorner<3, 3>();
+			H.block<3, 2>(0, v) += Hp[k].topRightCorner<3, 2>();
+			H.block<2, 3>(v, 0) += Hp[k].bottomLeftCorner<2, 3>();
+			H.block<2, 2>(v, v) += Hp[k].bottomRightCorner<2, 2>();
+			g.head<3>() += gp[k].head<3>();
+			g.segment<2>(v) += gp[k].tail<2>();
 		}
 		// Prior on the v_k (and pinned at 0 when not estimated).
 		const double prior = moving ? s * s * inv_sv2 : 1.0;

@@ -10,6 +10,8 @@ namespace forest_slam::trees
 {
 namespace
 {
+/** thinToCells merges up to this many sorted runs, and sorts beyond. */
+constexpr size_t kMaxMergedRuns = 32;
 int findRoot(std::vector<int>& parent, int i)
 {
 	while (parent[i] != i) i = parent[i] = parent[parent[i]];
@@ -27,7 +29,28 @@ Points2D thinToCells(const Points2D& p, double cell_m,
 		keyed.push_back({{int64_t(std::floor(p[i].x() / cell_m)),
 		                  int64_t(std::floor(p[i].y() / cell_m))},
 		                 i});
-	std::sort(keyed.begin(), keyed.end());
+	// The tree layer's slices come as a few sorted runs (one per column
+	// read: voxels in key order, a cell no larger than a voxel): merged,
+	// not sorted again. Same result either way.
+	std::vector<size_t> runs{0};
+	for (size_t j = 1; j < keyed.size() && runs.size() <= kMaxMergedRuns; j++)
+		if (keyed[j] < keyed[j - 1]) runs.push_back(j);
+	if (runs.size() > kMaxMergedRuns)
+		std::sort(keyed.begin(), keyed.end());
+	else
+		for (runs.push_back(keyed.size()); runs.size() > 2;)
+		{
+			std::vector<size_t> merged{0};
+			for (size_t r = 0; r + 2 < runs.size(); r += 2)
+			{
+				std::inplace_merge(keyed.begin() + runs[r],
+				                   keyed.begin() + runs[r + 1],
+				                   keyed.begin() + runs[r + 2]);
+				merged.push_back(runs[r + 2]);
+			}
+			if (merged.back() != keyed.size()) merged.push_back(keyed.size());
+			runs.swap(merged);
+		}
 	Points2D out;
 	for (size_t j = 0; j < keyed.size();)
 	{

@@ -42,6 +42,9 @@ struct CircleFitResult
  * always defined, but shrinks the radius on partial arcs: only a start.
  * Returns false for fewer than 3 points or collinear points. */
 bool fitCircleKasa(const Points2D& p, Circle& out);
+/** The circle through three points, in closed form (false: collinear). */
+bool circleThrough3(const Eigen::Vector2d& a, const Eigen::Vector2d& b,
+                    const Eigen::Vector2d& c, Circle& out);
 
 /** Geometric (orthogonal distance) fit by Gauss–Newton/Levenberg–Marquardt
  * with Tukey-biweight IRLS; the residual scale is re-estimated from the MAD
