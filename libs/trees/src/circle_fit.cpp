@@ -422,9 +422,17 @@ bool refineCircleSegments(const Points2D& p, const Points2D& dir,
 	auto cost = [&](const Eigen::VectorXd& v, double s)
 	{
 		double sum = 0, r;
-		Eigen::Vector3d J;
 		for (size_t i = 0; i < n; i++)
-			sum += residual(v, i, r, J) ? tukeyRho(r, s) : tukeyRho(1e9, s);
+		{
+			const size_t g = g_of[i];
+			const Circle cg{{v[0] + v[3 + 2 * g], v[1] + v[4 + 2 * g]}, v[2]};
+			bool hit = true;
+			if (dir[i].squaredNorm() > 0)
+				hit = rayDistance(p[i], dir[i], cg, r);
+			else
+				r = std::max((p[i] - cg.centre).norm(), 1e-12) - cg.radius_m;
+			sum += hit ? tukeyRho(r, s) : tukeyRho(1e9, s);
+		}
 		return sum + 0.5 * s * s * inv_s2 * v.tail(2 * G).squaredNorm();
 	};
 	double lambda = 1e-3;
@@ -432,9 +440,14 @@ bool refineCircleSegments(const Points2D& p, const Points2D& dir,
 	std::vector<char> ok(n);
 	std::vector<Eigen::Vector3d, Eigen::aligned_allocator<Eigen::Vector3d>> Js(
 	    n);
+	std::vector<Eigen::Matrix3d, Eigen::aligned_allocator<Eigen::Matrix3d>> Hs(
+	    G);
+	std::vector<Eigen::Vector3d, Eigen::aligned_allocator<Eigen::Vector3d>> gs(
+	    G);
+	std::vector<double> good;
 	for (int it = 0; it < max_iterations; it++)
 	{
-		std::vector<double> good;
+		good.clear();
 		for (size_t i = 0; i < n; i++)
 		{
 			ok[i] = residual(x, i, r[i], Js[i]);
@@ -442,24 +455,30 @@ bool refineCircleSegments(const Points2D& p, const Points2D& dir,
 		}
 		if (good.size() < 3) return false;
 		const double s = madScale(good, min_scale_m);
-		Eigen::MatrixXd H = Eigen::MatrixXd::Zero(m, m);
-		Eigen::VectorXd g = Eigen::VectorXd::Zero(m);
+		// Parameters a point touches: cx, cy, r and its segment's shift,
+		// whose derivatives are the centre's: summed per segment in fixed
+		// 3x3 blocks, then placed (as in refineCircleAlongRays).
+		for (size_t k = 0; k < G; k++) Hs[k].setZero(), gs[k].setZero();
 		for (size_t i = 0; i < n; i++)
 		{
 			if (!ok[i]) continue;
 			const double w = tukeyWeight(r[i], s);
 			if (w == 0) continue;
-			// Parameters touched: cx, cy, r and the segment's shift.
-			const int k = 3 + 2 * int(g_of[i]);
 			const Eigen::Vector3d& J = Js[i];
-			const int idx[5] = {0, 1, 2, k, k + 1};
-			const double Jf[5] = {J[0], J[1], J[2], J[0], J[1]};
-			for (int a = 0; a < 5; a++)
-			{
-				g[idx[a]] += w * Jf[a] * r[i];
-				for (int b = 0; b < 5; b++)
-					H(idx[a], idx[b]) += w * Jf[a] * Jf[b];
-			}
+			Hs[g_of[i]].noalias() += (w * J) * J.transpose();
+			gs[g_of[i]].noalias() += (w * r[i]) * J;
+		}
+		Eigen::MatrixXd H = Eigen::MatrixXd::Zero(m, m);
+		Eigen::VectorXd g = Eigen::VectorXd::Zero(m);
+		for (size_t k = 0; k < G; k++)
+		{
+			const int v = 3 + 2 * int(k);
+			H.topLeftCorner<3, 3>() += Hs[k];
+			H.block<3, 2>(0, v) += Hs[k].leftCols<2>();
+			H.block<2, 3>(v, 0) += Hs[k].topRows<2>();
+			H.block<2, 2>(v, v) += Hs[k].topLeftCorner<2, 2>();
+			g.head<3>() += gs[k];
+			g.segment<2>(v) += gs[k].head<2>();
 		}
 		const double prior = s * s * inv_s2;
 		for (int k = 3; k < m; k++)

@@ -95,7 +95,10 @@ void TreeLayer::SortedVoxels::compact(size_t max_pending)
 	static_assert(sizeof(Voxel) == 48, "stem-band voxel grew");
 	if (pending_.size() <= max_pending || pending_.empty()) return;
 	mergeIn(pending_);
-	std::vector<Voxel>().swap(pending_);
+	// The buffer's capacity stays while the column takes points (grown
+	// afresh after every merge, its reallocations were a tenth of the
+	// store's CPU); spill() and release() free it.
+	pending_.clear();
 }
 
 void TreeLayer::SortedVoxels::transform(const Eigen::Isometry3f& T)
@@ -182,6 +185,7 @@ float TreeLayer::SortedVoxels::transformByTime(
 void TreeLayer::SortedVoxels::spill(core::SpillFile& f)
 {
 	compact();
+	std::vector<Voxel>().swap(pending_);  // its capacity too
 	if (spilled_)
 	{
 		if (!voxels_.empty()) spillMerged(f);  // new voxels: merged on disk
@@ -581,10 +585,10 @@ void TreeLayer::addScan(const std::vector<Eigen::Vector3f>& pts,
 		else if (p.z() < pts[size_t(low)].z())
 			low = int32_t(i);
 	}
-	// Merged into the columns' stores; each cell's entry (a stable pointer
-	// into the unordered_map) and column kept for pass 2.
+	// Merged into the columns' stores; each cell's column and lowest height
+	// kept for pass 2.
 	sc.column_of_cell.resize(sc.lowest_of_cell.size());
-	sc.store_of_cell.resize(sc.lowest_of_cell.size());
+	sc.low_z.resize(sc.lowest_of_cell.size());
 	ColumnKey last_key{INT32_MIN, INT32_MIN};
 	Column* last_col = nullptr;
 	for (const int32_t c : sc.touched)
@@ -595,11 +599,12 @@ void TreeLayer::addScan(const std::vector<Eigen::Vector3f>& pts,
 		if (!last_col || !(ck == last_key))
 			last_col = &column(ck), last_key = ck;
 		const Eigen::Vector3f& p = pts[size_t(sc.lowest_of_cell[size_t(c)])];
-		auto [it, inserted] = last_col->lowest.try_emplace(
-		    map::VoxelKey{int32_t(gx), int32_t(gy), 0}, p);
-		if (!inserted && p.z() < it->second.z()) it->second = p;
+		bool added = false;
+		Eigen::Vector3f& low =
+		    last_col->lowest.tryEmplace(core::packCellKey(gx, gy, 0), &added);
+		if (added || p.z() < low.z()) low = p;
 		sc.column_of_cell[size_t(c)] = last_col;
-		sc.store_of_cell[size_t(c)] = &it->second;
+		sc.low_z[size_t(c)] = low.z();
 		sc.lowest_of_cell[size_t(c)] = -1;  // the grid is clean for next scan
 	}
 	// Pass 2: the stem band above the lowest point of the cell so far;
@@ -627,8 +632,8 @@ void TreeLayer::addScan(const std::vector<Eigen::Vector3f>& pts,
 		const int32_t c = sc.cell_of_point[i];
 		if (c < 0) continue;
 		Column* col = sc.column_of_cell[size_t(c)];
-		const Eigen::Vector3f* low = sc.store_of_cell[size_t(c)];
-		const float h = pts[i].z() - low->z();
+		const float low_z = sc.low_z[size_t(c)];
+		const float h = pts[i].z() - low_z;
 		if (h < o_.layer_min_hag_m || h > o_.layer_max_hag_m) continue;
 		col->dirty = true;
 		const Eigen::Vector3f d = pts[i] - sensor.cast<float>();
@@ -785,9 +790,12 @@ std::vector<map::TreeRecord> TreeLayer::findTrees(
 		{
 			const auto it = cols_.find({k.x + dx, k.y + dy});
 			if (it == cols_.end()) continue;
-			for (const auto& [key, p] : it->second.lowest)
-				if (inside(p.x(), p.y(), ground_margin))
-					ground.push_back(p.cast<double>());
+			it->second.lowest.forEach(
+			    [&](uint64_t, const Eigen::Vector3f& p)
+			    {
+				    if (inside(p.x(), p.y(), ground_margin))
+					    ground.push_back(p.cast<double>());
+			    });
 			SortedVoxels& copy =
 			    SortedVoxels::readBuffers().copy;  // buffers kept, as s's
 			const auto& stem = readable(
@@ -1000,15 +1008,18 @@ void TreeLayer::moveGroundAndTrees(Column& c, const Eigen::Isometry3d& T)
 	const Eigen::Isometry3f Tf = T.cast<float>();
 	const float inv_g = float(1.0 / o_.layer_ground_cell_m);
 	decltype(c.lowest) lowest;
-	for (const auto& [key, p] : c.lowest)
-	{
-		const Eigen::Vector3f q = Tf * p;
-		const map::VoxelKey g{int32_t(std::floor(q.x() * inv_g)),
-		                      int32_t(std::floor(q.y() * inv_g)), 0};
-		auto [jt, inserted] = lowest.try_emplace(g, q);
-		if (!inserted && q.z() < jt->second.z()) jt->second = q;
-	}
-	c.lowest.swap(lowest);
+	c.lowest.forEach(
+	    [&](uint64_t, const Eigen::Vector3f& p)
+	    {
+		    const Eigen::Vector3f q = Tf * p;
+		    bool added = false;
+		    Eigen::Vector3f& low = lowest.tryEmplace(
+		        core::packCellKey(int64_t(std::floor(q.x() * inv_g)),
+		                          int64_t(std::floor(q.y() * inv_g)), 0),
+		        &added);
+		    if (added || q.z() < low.z()) low = q;
+	    });
+	std::swap(c.lowest, lowest);
 	for (auto& t : c.trees)
 	{
 		const Eigen::Vector3d q = T * Eigen::Vector3d(t.x, t.y, t.z_ground);
@@ -1043,7 +1054,7 @@ size_t TreeLayer::memoryBytes() const
 {
 	size_t n = core::hashMapBytes(cols_);
 	for (const auto& [k, c] : cols_)
-		n += core::hashMapBytes(c.lowest) + c.stem.memoryBytes() +
+		n += c.lowest.memoryBytes() + c.stem.memoryBytes() +
 		     core::vectorBytes(c.trees);
 	return n;
 }

@@ -14,6 +14,7 @@
 //    ground cell so far: the stem band, fine enough for the DBH fit, which
 //    the map's 0.2 m / 0.4 m feature voxels are not.
 // Tree tops come from the map's own voxel clouds above the stem band.
+#include <forest_slam/core/flat_hash_map.h>
 #include <forest_slam/core/spill_file.h>
 #include <forest_slam/map/forest_map.h>
 #include <forest_slam/trees/tree_options.h>
@@ -303,9 +304,8 @@ class TreeLayer
 
 	struct Column
 	{
-		/** Lowest point per ground cell (key z = 0). */
-		std::unordered_map<map::VoxelKey, Eigen::Vector3f, map::VoxelKeyHash>
-		    lowest;
+		/** Lowest point per ground cell (core::packCellKey(x, y, 0)). */
+		core::FlatHashMap<Eigen::Vector3f> lowest;
 		SortedVoxels stem;
 		std::vector<map::TreeRecord> trees;
 		bool dirty = false;
@@ -314,12 +314,13 @@ class TreeLayer
 	/** addScan's ground cells of one scan, kept between scans (cleared as
 	 * used): a square grid of layer_ground_cell_m cells around the sensor
 	 * holding the index of each cell's lowest point (-1: none), and for
-	 * the cells touched, their column and their entry in its `lowest`. */
+	 * the cells touched, their column and the height of their lowest point
+	 * so far (the column's `lowest` with this scan's). */
 	struct ScanCells
 	{
 		std::vector<int32_t> lowest_of_cell, cell_of_point, touched;
 		std::vector<Column*> column_of_cell;
-		std::vector<const Eigen::Vector3f*> store_of_cell;
+		std::vector<float> low_z;
 	};
 	ScanCells scan_cells_;
 
