@@ -425,9 +425,13 @@ std::vector<std::string> writeOutputs(const MappingPipeline& p,
 	        .count();
 	const double cpu_s = core::processCpuSeconds();
 
+	// The tree layer's share: its store and detections per scan, its
+	// corrections (in-run merges of the passes, the final correction: on
+	// the back-end's side) and its end-of-run detections.
+	const auto* layer = p.treeLayer();
 	double tree_total_ms = s.tree_finish_ms;
 	for (double v : s.tree_ms) tree_total_ms += v;
-	const auto* layer = p.treeLayer();
+	if (layer) tree_total_ms += layer->stats().correct_ms;
 	const std::string summary = dir + "/run_summary.json";
 	core::writeFileAtomically(
 	    summary,
@@ -484,6 +488,8 @@ std::vector<std::string> writeOutputs(const MappingPipeline& p,
 		       << ", \"share_of_cpu\": "
 		       << (cpu_s > 0 ? tree_total_ms / (1000 * cpu_s) : 0)
 		       << ", \"finish_ms\": " << s.tree_finish_ms
+		       << ", \"correct_ms\": "
+		       << (layer ? layer->stats().correct_ms : 0)
 		       << ", \"detections\": "
 		       << (layer ? layer->stats().detections : 0)
 		       << ", \"detect_ms\": " << (layer ? layer->stats().detect_ms : 0)

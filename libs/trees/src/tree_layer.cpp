@@ -931,6 +931,7 @@ size_t TreeLayer::correct(
 {
 	if (released_)
 		throw std::logic_error("TreeLayer::correct after releaseStemVoxels");
+	const auto started = std::chrono::steady_clock::now();
 	const double t0 = std::isfinite(t0_s_) ? t0_s_ : 0.0;
 	const float rigid_m = float(0.5 * o_.layer_voxel_m);
 	// Columns are moved two at a time (the end of a run waited seconds for
@@ -1000,6 +1001,7 @@ size_t TreeLayer::correct(
 	if (error) std::rethrow_exception(error);
 	pass_ = 0;
 	publish(map);
+	stats_.correct_ms += msSince(started);
 	return redetect;
 }
 

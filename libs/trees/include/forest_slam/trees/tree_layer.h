@@ -49,9 +49,12 @@ struct ColumnKeyHash
 struct TreeLayerStats
 {
 	uint64_t scans = 0;
-	uint64_t detections = 0;             ///< column detections run
-	double store_ms = 0;                 ///< total time adding scans
-	double detect_ms = 0;                ///< total time detecting
+	uint64_t detections = 0;  ///< column detections run
+	double store_ms = 0;      ///< total time adding scans
+	double detect_ms = 0;     ///< total time detecting
+	/** Wall time of correct() (loop corrections: in the run and at its
+	 * end; two columns at a time), detections it triggered included. */
+	double correct_ms = 0;
 	std::vector<double> detect_ms_each;  ///< per column detection
 	size_t stored_voxels = 0;            ///< stem-band voxels now
 	/** Stem-band voxels when releaseStemVoxels() freed them (0 before). */
