@@ -7,6 +7,7 @@
 // its keyframe and the tree layer and the output keyframes follow.
 #include <forest_slam/core/log.h>
 #include <forest_slam/core/memory.h>
+#include <forest_slam/core/time_index.h>
 #include <forest_slam/odometry/lidar_odometry.h>
 #include <forest_slam/pipeline/mapping_pipeline.h>
 
@@ -366,8 +367,8 @@ void MappingPipeline::correctTreeLayer(const core::Trajectory& as_mapped)
 	// time (the passes were kept apart for this); ground cells and trees
 	// with that of the scan that passed nearest to the column's centre.
 	const auto C = scanCorrections(trajectory_, mapped);
-	const auto t = scanTimes(mapped);
-	const auto at_time = [&](double ts) { return C[scanAt(t, ts)]; };
+	const core::TimeIndex clock(scanTimes(mapped));
+	const auto at_time = [&](double ts) { return C[clock.at(ts)]; };
 	const auto xy = scanPositions(mapped);
 	const auto of_column = [&](const trees::ColumnKey& k)
 	{
@@ -441,17 +442,16 @@ void MappingPipeline::mergeTreeLayerPasses(const core::Trajectory& now)
 	auto C = std::make_shared<std::vector<
 	    Eigen::Isometry3f, Eigen::aligned_allocator<Eigen::Isometry3f>>>(
 	    scanCorrections(now, mapped));
-	auto t = std::make_shared<std::vector<double>>(scanTimes(mapped));
+	auto clock = std::make_shared<const core::TimeIndex>(scanTimes(mapped));
 	// Ground cells and trees: the correction of the scan nearest to the
 	// column's centre (as in correctTreeLayer).
 	auto xy =
 	    std::make_shared<std::vector<Eigen::Vector2d>>(scanPositions(mapped));
 	const double column_m = tree_layer_->columnSize();
 	odometry_->runOnMap(
-	    [this, C, t, xy, column_m](map::CForestMap& m)
+	    [this, C, clock, xy, column_m](map::CForestMap& m)
 	    {
-		    const auto at_time = [&](double ts)
-		    { return (*C)[scanAt(*t, ts)]; };
+		    const auto at_time = [&](double ts) { return (*C)[clock->at(ts)]; };
 		    const auto of_column = [&](const trees::ColumnKey& k)
 		    {
 			    return Eigen::Isometry3d(
