@@ -181,15 +181,12 @@ std::vector<StemSection> findSliceSections(const Points2D& xy, int slice_index,
 {
 	std::vector<StemSection> out;
 	// The objects of a slice are told apart at the scale of link_distance_m:
-	// cluster one point per link_distance_m/2 square (the slice of a dense
+	// cluster one point per link_distance_m/4 square (the slice of a dense
 	// map holds tens of points per such square; the neighbourhood search
 	// over all of them was most of the detection time), then give every
-	// point its square's cluster, so the circle fits see all points. (At
-	// link_distance_m/4, on the tree layer's 2 cm voxels, the squares
-	// halved the points only: most are clutter, one per voxel; k-means and
-	// the merge took 5.8 s of the handheld run's 13.5 s of slices.)
+	// point its square's cluster, so the circle fits see all points.
 	std::vector<uint32_t> cell_of;
-	const Points2D coarse = thinToCells(xy, 0.5 * o.link_distance_m, &cell_of);
+	const Points2D coarse = thinToCells(xy, 0.25 * o.link_distance_m, &cell_of);
 	const auto leaf =
 	    sliceKMeansLeaves(coarse, o.kmeans_branching, o.kmeans_leaf_points);
 	const auto coarse_clusters =

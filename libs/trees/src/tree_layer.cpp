@@ -93,12 +93,17 @@ void TreeLayer::SortedVoxels::compact(size_t max_pending)
 {
 	// The pass fills what was padding: 48 bytes per voxel either way.
 	static_assert(sizeof(Voxel) == 48, "stem-band voxel grew");
-	if (pending_.size() <= max_pending || pending_.empty()) return;
-	mergeIn(pending_);
-	// The buffer's capacity stays while the column takes points (grown
-	// afresh after every merge, its reallocations were a tenth of the
-	// store's CPU); spill() and release() free it.
-	pending_.clear();
+	if (!pending_.empty() && pending_.size() > max_pending) mergeIn(pending_);
+	// The buffer's capacity stays between the merges of a column taking
+	// points (grown afresh after every merge, its reallocations were a
+	// tenth of the store's CPU); a full compaction (before detections,
+	// moves and spills) frees it: otherwise each resident column would
+	// hold up to kMaxPending voxels (~10 MB) through the end-of-run
+	// detection, where a long run's peak RSS is.
+	if (max_pending == 0)
+		std::vector<Voxel>().swap(pending_);
+	else if (pending_.size() > max_pending)
+		pending_.clear();
 }
 
 void TreeLayer::SortedVoxels::transform(const Eigen::Isometry3f& T)
