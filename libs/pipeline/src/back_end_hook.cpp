@@ -325,13 +325,6 @@ std::vector<double> scanTimes(const core::Trajectory& mapped)
 	return t;
 }
 
-/** The last scan starting at or before ts (the first if none). */
-size_t scanAt(const std::vector<double>& t, double ts)
-{
-	const size_t u = std::upper_bound(t.begin(), t.end(), ts) - t.begin();
-	return u > 0 ? u - 1 : 0;
-}
-
 std::vector<Eigen::Vector2d> scanPositions(const core::Trajectory& mapped)
 {
 	std::vector<Eigen::Vector2d> xy;
@@ -394,7 +387,8 @@ void MappingPipeline::correctDenseMap(const core::Trajectory& mapped)
 	// point's time (the last scan starting at or before it): exact, and
 	// nothing was spent on it while mapping.
 	const auto C = scanCorrections(trajectory_, mapped);
-	const auto t = scanTimes(mapped);
+	const core::TimeIndex clock(scanTimes(mapped));
+	const auto& t = clock.times();
 	const double t0 = outputs_.dense().timeOrigin();
 	size_t k = 0;
 	outputs_.transformDense(
@@ -402,7 +396,7 @@ void MappingPipeline::correctDenseMap(const core::Trajectory& mapped)
 	    {
 		    const double tp = t0 + p.t_s;
 		    if (!(t[k] <= tp && (k + 1 == t.size() || tp < t[k + 1])))
-			    k = scanAt(t, tp);
+			    k = clock.at(tp);
 		    p.xyz = C[k] * p.xyz;
 	    });
 }
