@@ -122,6 +122,69 @@ TEST(CircleFit, AlongRayNoiseOneSidedView)
 	EXPECT_LE(std::abs(sum_ray / trials), 0.002);
 }
 
+// A small stem far away (r 5 cm at 12 m, range noise 2.5 cm: half the
+// radius): the lateral spread of the rays that hit it gives the radius
+// (within 2.5 mm: the reach of 4 cm cuts the front's largest range errors),
+// and a centre off along the rays (the range) hardly changes it; points
+// without a direction or beyond the reach are left out.
+TEST(CircleFit, SilhouetteRadiusOfASmallFarStem)
+{
+	std::mt19937 rng(5);
+	std::normal_distribution<double> g(0, 0.025);
+	std::uniform_real_distribution<double> u(0, 1);
+	const double r = 0.05, range = 12.0, step = 0.2 * M_PI / 180;
+	double sum = 0, sum_sq = 0;
+	const int trials = 200;
+	for (int t = 0; t < trials; t++)
+	{
+		const double view = 2 * M_PI * u(rng);
+		const Eigen::Vector2d c(1.0, 2.0);
+		const Eigen::Vector2d s =
+		    c + range * Eigen::Vector2d(std::cos(view), std::sin(view));
+		Points2D p, d;
+		const double half = std::asin(r / range);
+		// 100 scans, each firing at its own phase of the 0.2 deg step.
+		for (int scan = 0; scan < 100; scan++)
+			for (double b = -half + step * u(rng); b <= half; b += step)
+			{
+				const double a = view + M_PI + b;
+				const Eigen::Vector2d dir(std::cos(a), std::sin(a));
+				const double bb = (s - c).dot(dir),
+				             cc = (s - c).squaredNorm() - r * r;
+				if (bb * bb - cc < 0) continue;
+				p.push_back(s + (-bb - std::sqrt(bb * bb - cc) + g(rng)) * dir);
+				d.push_back(dir);
+			}
+		// Clutter: far off the stem, and a point with no known ray.
+		p.emplace_back(c + Eigen::Vector2d(0.5, 0.0));
+		d.emplace_back(1.0, 0.0);
+		p.emplace_back(c + Eigen::Vector2d(0.0, 0.2 * r));
+		d.emplace_back(0.0, 0.0);
+		// The centre off by 1 cm along the view: same lateral offsets.
+		const Eigen::Vector2d along = (c - s).normalized();
+		const double rs =
+		    silhouetteRadius(p, d, Circle{c + 0.01 * along, r}, 0.04, 15);
+		ASSERT_TRUE(std::isfinite(rs));
+		sum += rs - r;
+		sum_sq += (rs - r) * (rs - r);
+	}
+	const double mean = sum / trials,
+	             sd = std::sqrt(sum_sq / trials - mean * mean);
+	std::printf(
+	    "silhouette radius, r 5 cm at 12 m, range sigma 2.5 cm: mean "
+	    "error %.2f mm, sd %.2f mm\n",
+	    1e3 * mean, 1e3 * sd);
+	EXPECT_GE(mean, 0.0);
+	EXPECT_LE(mean, 0.0025);
+	EXPECT_LE(sd, 0.003);
+	// Too few points with a direction: no estimate.
+	Points2D p{{0.0, 0.05}, {0.05, 0.0}}, d{{1.0, 0.0}, {0.0, 0.0}};
+	EXPECT_TRUE(
+	    std::isnan(silhouetteRadius(p, d, Circle{{0, 0}, 0.05}, 0.06, 2)));
+	EXPECT_NEAR(silhouetteRadius(p, d, Circle{{0, 0}, 0.05}, 0.06, 1),
+	            std::sqrt(3.0) * 0.05, 1e-12);
+}
+
 namespace
 {
 /** The rays of one straight pass by a stem (centre c, radius r) at 10 Hz

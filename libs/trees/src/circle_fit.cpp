@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <random>
 
 namespace forest_slam::trees
@@ -501,6 +502,26 @@ bool refineCircleSegments(const Points2D& p, const Points2D& dir,
 			(*shifts)[i] = x.segment<2>(3 + 2 * g_of[i]);
 	}
 	return true;
+}
+
+double silhouetteRadius(const Points2D& p, const Points2D& dir, const Circle& c,
+                        double reach_m, size_t min_points)
+{
+	double sum_u2 = 0;
+	size_t n = 0;
+	const double reach2 = (c.radius_m + reach_m) * (c.radius_m + reach_m);
+	for (size_t i = 0; i < p.size() && i < dir.size(); i++)
+	{
+		const Eigen::Vector2d q = p[i] - c.centre;
+		const Eigen::Vector2d& d = dir[i];
+		if (d.squaredNorm() == 0 || q.squaredNorm() > reach2) continue;
+		const double u = d.x() * q.y() - d.y() * q.x();  // d unit: d x q
+		sum_u2 += u * u;
+		n++;
+	}
+	if (n < std::max<size_t>(min_points, 1))
+		return std::numeric_limits<double>::quiet_NaN();
+	return std::sqrt(3 * sum_u2 / double(n));
 }
 
 double arcCoverageDeg(const Points2D& p, const Circle& c, double max_residual_m,

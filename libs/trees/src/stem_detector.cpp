@@ -25,6 +25,11 @@ constexpr double kSolidMinRmseM = 0.035;
 constexpr double kSolidMinArcDeg = 240;
 constexpr double kSolidMinShrinkM = 0.005;
 constexpr int kSolidRingIterations = 500;
+// The silhouette estimate (silhouetteRadius) counts the points within this
+// beyond the fitted circle: 1.6 sigma of the range noise (2.5 cm). On the
+// forest-sim runs (ground-truth and SLAM poses) 3-4 cm kept the clutter out
+// best: DBH MAPE of the blended stems' runs lowest, 6 and 8 cm worse.
+constexpr double kSilhouetteReachM = 0.04;
 
 CircleFitOptions fitOptions(const TreeOptions& o, double rmin, double rmax)
 {
@@ -765,6 +770,25 @@ std::vector<DetectedTree> detectTrees(
 				f = evaluateCircle(band, c, fo);
 				st.solid_rings++;
 			}
+		}
+		// A small stem's radius from the lateral spread of its rays too
+		// (silhouetteRadius; TreeOptions::dbh_silhouette_max_m): the mean of
+		// both, fading out towards the larger stems, where a voxel merges
+		// many rays at the stem's front and the spread reads low.
+		if (f.ok && o.dbh_silhouette_max_m > 0 &&
+		    2 * f.circle.radius_m < o.dbh_silhouette_max_m)
+		{
+			const double full = 0.75 * o.dbh_silhouette_max_m;
+			const double w =
+			    0.5 *
+			    std::clamp((o.dbh_silhouette_max_m - 2 * f.circle.radius_m) /
+			                   (o.dbh_silhouette_max_m - full),
+			               0.0, 1.0);
+			const double rs =
+			    silhouetteRadius(band, band_dir, f.circle, kSilhouetteReachM,
+			                     size_t(o.min_dbh_points));
+			if (std::isfinite(rs))
+				f.circle.radius_m = w * rs + (1 - w) * f.circle.radius_m;
 		}
 		if (f.ok)
 		{

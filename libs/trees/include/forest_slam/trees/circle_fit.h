@@ -138,6 +138,23 @@ bool refineCircleSegments(const Points2D& p, const Points2D& dir,
 Circle fitSolidRing(const Points2D& p, const Circle& start, double band_m,
                     int iterations, unsigned seed);
 
+/** Radius of a stem from the lateral spread of the rays that hit it. Rays
+ * evenly spaced in angle hit a circle of radius r seen from afar at lateral
+ * offsets u (the ray line's distance from the centre) spread evenly over
+ * [-r, r], so r = sqrt(3 mean u²): range noise moves a point along its ray,
+ * never across, so it leaves this estimate alone (on a small stem it is as
+ * large as the radius and pins the fitted radius only loosely). Lateral
+ * blur (pose errors) inflates it; a near stem's voxels, each merging many
+ * rays at its front, sample u unevenly and deflate it: the stem detector
+ * uses it on small stems only. Points with a zero `dir` (unit, as
+ * refineCircleAlongRays) or farther than radius + `reach_m` from the
+ * centre (clutter) are left out; NaN if fewer than `min_points` remain.
+ * The cut also drops the front's points with the largest range errors
+ * (small |u|): under range noise sigma, a reach of 1.6 sigma reads a 5 cm
+ * radius ~1-2 mm large. */
+double silhouetteRadius(const Points2D& p, const Points2D& dir, const Circle& c,
+                        double reach_m, size_t min_points);
+
 /** Degrees of the circle seen by `p`: bins of `bin_deg` holding a point
  * within `max_residual_m` of the circle. */
 double arcCoverageDeg(const Points2D& p, const Circle& c, double max_residual_m,

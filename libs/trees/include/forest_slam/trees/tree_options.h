@@ -87,6 +87,14 @@ struct TreeOptions : public mrpt::config::CLoadableOptions
 	/** Half height of the band of the multi-view fit (narrower than
 	 * dbh_band_half_m: a wrong lean estimate shears a tall band). */
 	double dbh_segment_band_half_m = 0.15;
+	/** Small stems seen along known rays: a fitted DBH below this is
+	 * averaged with the silhouette estimate (silhouetteRadius: the lateral
+	 * spread of the rays that hit the stem, blind to range noise), at half
+	 * weight up to 3/4 of it and fading to none at it. On a 10-20 cm stem
+	 * the range noise (2.5 cm) is a third of the radius and the along-ray
+	 * fit trades the radius against the centre's range; the two estimates
+	 * err apart (doc/trees.md). 0: off. */
+	double dbh_silhouette_max_m = 0.20;
 	int ransac_iterations = 300;
 	double ransac_inlier_m = 0.015;
 	uint32_t seed = 1;
