@@ -6,10 +6,12 @@
 #include <forest_slam/trees/tree_layer.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <random>
 #include <set>
+#include <tuple>
 
 using namespace forest_slam;
 using namespace forest_slam::trees;
@@ -556,4 +558,43 @@ TEST(TreeLayer, PassesMergedDuringTheRunThenCorrectedAtTheEnd)
 	layer.finish(m);
 	ASSERT_EQ(m.trees().size(), stems.size());
 	EXPECT_LT(worstDbhError(stems, m.trees()), 0.01);
+}
+
+// The store keeps a column's voxels sorted by cell (x, then y, then z; the
+// sort buckets by x cell first) with one voxel per cell: points given in
+// random order, every cell twice, spread over ~500 x cells.
+TEST(TreeLayer, StoredVoxelsSortedOnePerCell)
+{
+	TreeOptions o;
+	o.layer_spill_to_disk = false;
+	o.dbh_segment_scans = 0;  // one voxel per cell (no time segments)
+	TreeLayer layer(o, 20.0);
+	const double v = o.layer_voxel_m;
+	std::mt19937 rng(7);
+	std::uniform_int_distribution<int> cx(1, 500), cy(1, 40), cz(40, 120);
+	std::uniform_real_distribution<double> jitter(-0.3, 0.3);
+	std::set<std::tuple<int, int, int>> cells;
+	std::vector<Eigen::Vector3f> pts;
+	for (int i = 0; i < 30000; i++) cells.emplace(cx(rng), cy(rng), cz(rng));
+	for (int copy = 0; copy < 2; copy++)
+		for (const auto& [x, y, z] : cells)
+			pts.emplace_back(float((x + 0.5 + jitter(rng)) * v),
+			                 float((y + 0.5 + jitter(rng)) * v),
+			                 float((z + 0.5 + jitter(rng)) * v));
+	std::shuffle(pts.begin(), pts.end(), rng);
+	// Flat ground at z = 0 under all of it.
+	for (double x = 0; x < 11; x += 0.25)
+		for (double y = 0; y < 1; y += 0.25) pts.emplace_back(x, y, 0.0f);
+	layer.addScan(pts, Eigen::Vector3d(5, -1, 1.5));
+	const auto stored = layer.stemPoints(layer.columnOf(5, 0.5));
+	ASSERT_EQ(stored.size(), cells.size());
+	auto cellOf = [&](const Eigen::Vector3f& p)
+	{
+		return std::make_tuple(int(std::floor(p.x() / v)),
+		                       int(std::floor(p.y() / v)),
+		                       int(std::floor(p.z() / v)));
+	};
+	auto it = cells.begin();
+	for (size_t i = 0; i < stored.size(); i++, ++it)
+		ASSERT_EQ(cellOf(stored[i]), *it) << i;
 }
