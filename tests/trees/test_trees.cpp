@@ -36,6 +36,21 @@ Points2D arc(std::mt19937& rng, const Eigen::Vector2d& c, double r,
 	return p;
 }
 
+/** The ray from `s` at angle `a` [rad]: its first hit of the circle (c, r),
+ * moved along the ray by `range_error()` (drawn only on a hit), into `p`
+ * and its direction into `d`; false if it misses. */
+template <class Noise>
+bool castRay(const Eigen::Vector2d& s, double a, const Eigen::Vector2d& c,
+             double r, Noise&& range_error, Points2D& p, Points2D& d)
+{
+	const Eigen::Vector2d dir(std::cos(a), std::sin(a));
+	const double bb = (s - c).dot(dir), cc = (s - c).squaredNorm() - r * r;
+	if (bb * bb - cc < 0) return false;
+	p.push_back(s + (-bb - std::sqrt(bb * bb - cc) + range_error()) * dir);
+	d.push_back(dir);
+	return true;
+}
+
 CircleFitOptions opts()
 {
 	CircleFitOptions o;
@@ -98,15 +113,8 @@ TEST(CircleFit, AlongRayNoiseOneSidedView)
 		const double half = std::asin(r / range);
 		// A lidar's fixed angular step across the stem (0.05°).
 		for (double b = -half; b <= half; b += 0.05 * M_PI / 180)
-		{
-			const double a = view + M_PI + b;
-			const Eigen::Vector2d dir(std::cos(a), std::sin(a));
-			const double bb = (s - c).dot(dir),
-			             cc = (s - c).squaredNorm() - r * r;
-			if (bb * bb - cc < 0) continue;
-			p.push_back(s + (-bb - std::sqrt(bb * bb - cc) + g(rng)) * dir);
-			d.push_back(dir);
-		}
+			castRay(
+			    s, view + M_PI + b, c, r, [&] { return g(rng); }, p, d);
 		const auto f = fitCircleRobust(p, opts());
 		ASSERT_TRUE(f.ok);
 		Circle ray = f.circle;
@@ -146,15 +154,8 @@ TEST(CircleFit, SilhouetteRadiusOfASmallFarStem)
 		// 100 scans, each firing at its own phase of the 0.2 deg step.
 		for (int scan = 0; scan < 100; scan++)
 			for (double b = -half + step * u(rng); b <= half; b += step)
-			{
-				const double a = view + M_PI + b;
-				const Eigen::Vector2d dir(std::cos(a), std::sin(a));
-				const double bb = (s - c).dot(dir),
-				             cc = (s - c).squaredNorm() - r * r;
-				if (bb * bb - cc < 0) continue;
-				p.push_back(s + (-bb - std::sqrt(bb * bb - cc) + g(rng)) * dir);
-				d.push_back(dir);
-			}
+				castRay(
+				    s, view + M_PI + b, c, r, [&] { return g(rng); }, p, d);
 		// Clutter: far off the stem, and a point with no known ray.
 		p.emplace_back(c + Eigen::Vector2d(0.5, 0.0));
 		d.emplace_back(1.0, 0.0);
