@@ -103,6 +103,13 @@ TEST(TreeLayerSim, TinyScenarioWithGroundTruthPoses)
 	const auto s = readJson(out + "/run_summary.json");
 	EXPECT_TRUE(s["stage_ms"].isMember("trees"));
 	EXPECT_GT(s["tree_layer"]["detections"].asUInt(), 0u);
+	// Its CPU time (thread clocks, both threads of the end-of-run
+	// detections) is part of the process's, and its share below 1.
+	const double cpu_ms = s["tree_layer"]["cpu_ms"].asDouble();
+	EXPECT_GT(cpu_ms, 0.0);
+	EXPECT_LT(cpu_ms, 1000 * s["cpu_seconds"].asDouble());
+	EXPECT_NEAR(s["tree_layer"]["share_of_cpu"].asDouble(),
+	            cpu_ms / (1000 * s["cpu_seconds"].asDouble()), 1e-3);
 	EXPECT_EQ(s["trees"].asUInt(), j["inputs"]["est_trees"].asUInt());
 	if (!HasFailure()) fs::remove_all(dir);
 }

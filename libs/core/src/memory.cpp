@@ -1,6 +1,7 @@
 #include <forest_slam/core/memory.h>
 
 #include <sys/resource.h>
+#include <time.h>
 #include <unistd.h>
 
 #include <cstdio>
@@ -33,6 +34,13 @@ double processCpuSeconds()
 	getrusage(RUSAGE_SELF, &u);
 	return u.ru_utime.tv_sec + u.ru_stime.tv_sec +
 	       1e-6 * (u.ru_utime.tv_usec + u.ru_stime.tv_usec);
+}
+
+double threadCpuSeconds()
+{
+	timespec t{};
+	if (clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t) != 0) return 0;
+	return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
 }
 
 }  // namespace forest_slam::core

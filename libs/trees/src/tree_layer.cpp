@@ -9,6 +9,7 @@
 #include <condition_variable>
 #include <exception>
 #include <mutex>
+#include <optional>
 #include <stdexcept>
 #include <thread>
 
@@ -51,6 +52,50 @@ double msSince(std::chrono::steady_clock::time_point t0)
 	           std::chrono::steady_clock::now() - t0)
 	    .count();
 }
+
+/** Adds the calling thread's CPU time [ms] from construction to
+ * destruction to `to` (TreeLayerStats::cpu_ms). */
+class CpuTally
+{
+   public:
+	explicit CpuTally(double& to) : to_(to), c0_(core::threadCpuSeconds()) {}
+	~CpuTally() { to_ += 1000 * (core::threadCpuSeconds() - c0_); }
+	CpuTally(const CpuTally&) = delete;
+	CpuTally& operator=(const CpuTally&) = delete;
+
+   private:
+	double& to_;
+	const double c0_;
+};
+
+/** Starts `work` on a second thread; its CPU time [ms] is added to
+ * `cpu_ms` when joined. */
+class SecondThread
+{
+   public:
+	template <class F>
+	SecondThread(F& work, double& cpu_ms)
+	    : cpu_ms_(cpu_ms),
+	      t_(
+	          [this, &work]
+	          {
+		          const double c0 = core::threadCpuSeconds();
+		          work();
+		          thread_ms_ = 1000 * (core::threadCpuSeconds() - c0);
+	          })
+	{
+	}
+	~SecondThread()
+	{
+		t_.join();
+		cpu_ms_ += thread_ms_;
+	}
+
+   private:
+	double& cpu_ms_;
+	double thread_ms_ = 0;
+	std::thread t_;
+};
 
 /** Horizontal distance from (x, y) to the square [x0, x0+s] × [y0, y0+s]. */
 double distanceToSquare(double x, double y, double x0, double y0, double s)
@@ -590,6 +635,7 @@ void TreeLayer::addScan(const std::vector<Eigen::Vector3f>& pts,
 		throw std::logic_error(
 		    "TreeLayer::addScan after releaseStemVoxels (end of the run)");
 	const auto t0 = std::chrono::steady_clock::now();
+	const CpuTally cpu(stats_.cpu_ms);
 	stats_.scans++;
 	if (!std::isfinite(time_s)) time_s = 0.1 * double(stats_.scans - 1);
 	if (!std::isfinite(t0_s_)) t0_s_ = time_s;
@@ -697,6 +743,7 @@ void TreeLayer::addScan(const std::vector<Eigen::Vector3f>& pts,
 
 size_t TreeLayer::update(const Eigen::Vector3d& sensor, map::CForestMap& map)
 {
+	const CpuTally cpu(stats_.cpu_ms);
 	std::vector<ColumnKey> due;
 	for (const auto& [k, c] : cols_)
 		if (detect_during_run_ && c.dirty &&
@@ -713,6 +760,7 @@ size_t TreeLayer::update(const Eigen::Vector3d& sensor, map::CForestMap& map)
 
 size_t TreeLayer::finish(map::CForestMap& map)
 {
+	const CpuTally cpu(stats_.cpu_ms);
 	std::vector<ColumnKey> due;
 	for (const auto& [k, c] : cols_)
 		if (c.dirty) due.push_back(k);
@@ -764,10 +812,9 @@ size_t TreeLayer::finish(map::CForestMap& map)
 		}
 	};
 	{
-		std::thread second;
-		if (due.size() > 1) second = std::thread(work);
+		std::optional<SecondThread> second;
+		if (due.size() > 1) second.emplace(work, stats_.cpu_ms);
 		work();
-		if (second.joinable()) second.join();
 	}
 	// The buffers of this thread (the second thread's went with it): the
 	// robot run kept 165 MB of them through the output writing.
@@ -975,6 +1022,7 @@ size_t TreeLayer::correct(
 	if (released_)
 		throw std::logic_error("TreeLayer::correct after releaseStemVoxels");
 	const auto started = std::chrono::steady_clock::now();
+	const CpuTally cpu(stats_.cpu_ms);
 	const double t0 = std::isfinite(t0_s_) ? t0_s_ : 0.0;
 	const float rigid_m = float(0.5 * o_.layer_voxel_m);
 	// Columns are moved two at a time (the end of a run waited seconds for
@@ -1036,10 +1084,9 @@ size_t TreeLayer::correct(
 		}
 	};
 	{
-		std::thread second;
-		if (keys.size() > 1) second = std::thread(work);
+		std::optional<SecondThread> second;
+		if (keys.size() > 1) second.emplace(work, stats_.cpu_ms);
 		work();
-		if (second.joinable()) second.join();
 	}
 	if (error) std::rethrow_exception(error);
 	pass_ = 0;
@@ -1087,6 +1134,7 @@ void TreeLayer::transformColumn(const ColumnKey& k, const Eigen::Isometry3d& T,
 	const auto it = cols_.find(k);
 	if (it == cols_.end()) return;
 	Column& c = it->second;
+	const CpuTally cpu(stats_.cpu_ms);
 	stats_.stored_voxels -= c.stem.size();
 	resident(c).transform(T.cast<float>());
 	stats_.stored_voxels += c.stem.size();

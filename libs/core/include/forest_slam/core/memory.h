@@ -17,6 +17,8 @@ double currentRssMb();
 double peakRssMb();
 /** CPU time of this process so far, user + system, all threads [s]. */
 double processCpuSeconds();
+/** CPU time of the calling thread so far, user + system [s]. */
+double threadCpuSeconds();
 
 template <class T, class A>
 size_t vectorBytes(const std::vector<T, A>& v)

@@ -55,6 +55,9 @@ struct TreeLayerStats
 	/** Wall time of correct() (loop corrections: in the run and at its
 	 * end; two columns at a time), detections it triggered included. */
 	double correct_ms = 0;
+	/** CPU time of all the layer's calls, on every thread they use
+	 * (thread clocks): the share of the process CPU it costs. */
+	double cpu_ms = 0;
 	std::vector<double> detect_ms_each;  ///< per column detection
 	size_t stored_voxels = 0;            ///< stem-band voxels now
 	/** Stem-band voxels when releaseStemVoxels() freed them (0 before). */
