@@ -110,9 +110,24 @@ double distanceToSquare(double x, double y, double x0, double y0, double s)
 namespace
 {
 constexpr size_t kMaxPending = 200000;  ///< points buffered per column
-/** Read buffers kept by a detecting thread between reads (48 MB). */
+/** Read buffers kept by a detecting thread between reads (32 MB). */
 constexpr size_t kKeptReadVoxels = size_t(1) << 20;
 constexpr int64_t kKeyOffset = int64_t(1) << 20;  ///< 21 bits per axis
+/** `v`'s points into `m`: the mean offset and direction weighted by the
+ * counts, each rounded once (the time is left to the caller). */
+template <class V>
+void addMeans(V& m, const V& v)
+{
+	const float w = float(v.count) / float(m.count + v.count);
+	for (int i = 0; i < 3; i++)
+	{
+		m.offset[i] = int16_t(std::lrint(float(m.offset[i]) +
+		                                 w * float(v.offset[i] - m.offset[i])));
+		m.dir[i] = int16_t(
+		    std::lrint(float(m.dir[i]) + w * float(v.dir[i] - m.dir[i])));
+	}
+	m.count += v.count;
+}
 }  // namespace
 
 uint64_t TreeLayer::SortedVoxels::keyOf(const Eigen::Vector3f& p) const
@@ -136,14 +151,13 @@ Eigen::Vector3f TreeLayer::SortedVoxels::centreOf(uint64_t key) const
 
 void TreeLayer::SortedVoxels::compact(size_t max_pending)
 {
-	// The pass fills what was padding: 48 bytes per voxel either way.
-	static_assert(sizeof(Voxel) == 48, "stem-band voxel grew");
+	static_assert(sizeof(Voxel) == 32, "stem-band voxel grew");
 	if (!pending_.empty() && pending_.size() > max_pending) mergeIn(pending_);
 	// The buffer's capacity stays between the merges of a column taking
 	// points (grown afresh after every merge, its reallocations were a
 	// tenth of the store's CPU); a full compaction (before detections,
 	// moves and spills) frees it: otherwise each resident column would
-	// hold up to kMaxPending voxels (~10 MB) through the end-of-run
+	// hold up to kMaxPending voxels (~6 MB) through the end-of-run
 	// detection, where a long run's peak RSS is.
 	if (max_pending == 0)
 		std::vector<Voxel>().swap(pending_);
@@ -161,8 +175,8 @@ void TreeLayer::SortedVoxels::transform(const Eigen::Isometry3f& T)
 	{
 		const Eigen::Vector3f c = T * centroid(v);
 		v.key = keyOf(c);
-		v.sum = (c - centreOf(v.key)) * float(v.count);
-		v.dir = T.linear() * v.dir;
+		setOffset(v, c - centreOf(v.key));
+		setDir(v, T.linear() * dirOf(v));
 	}
 	sortAndCombine();
 }
@@ -179,8 +193,8 @@ float TreeLayer::SortedVoxels::transformByTime(
 		const Eigen::Vector3f c0 = centroid(v), c = C * c0;
 		worst = std::max(worst, (c - T * c0).norm());
 		v.key = keyOf(c);
-		v.sum = (c - centreOf(v.key)) * float(v.count);
-		v.dir = C.linear() * v.dir;
+		setOffset(v, c - centreOf(v.key));
+		setDir(v, C.linear() * dirOf(v));
 		// Corrected, the passes agree: merged again (pass 0).
 		if (!dominant_time) v.pass = 0;
 	}
@@ -215,12 +229,7 @@ float TreeLayer::SortedVoxels::transformByTime(
 	{
 		const Voxel& v = voxels_[i];
 		if (i > 0 && voxels_[w].key == v.key && voxels_[w].segment == v.segment)
-		{
-			auto& m = voxels_[w];
-			m.sum += v.sum;
-			m.dir += v.dir;
-			m.count += v.count;
-		}
+			addMeans(voxels_[w], v);
 		else
 		{
 			if (i > 0) w++;
@@ -429,15 +438,13 @@ void sortVoxels(std::vector<V>& v)
 	for (size_t b = 0; b < nb; b++)
 		std::sort(v.begin() + start[b], v.begin() + start[b + 1], less);
 }
-/** Sums `v` into `m` (same key, pass and segment): the time averaged. */
+/** `v` into `m` (same key, pass and segment): the time averaged too. */
 template <class V>
 void combine(V& m, const V& v)
 {
 	m.time = float((double(m.time) * m.count + double(v.time) * v.count) /
 	               double(m.count + v.count));
-	m.sum += v.sum;
-	m.dir += v.dir;
-	m.count += v.count;
+	addMeans(m, v);
 }
 }  // namespace
 
@@ -701,10 +708,13 @@ void TreeLayer::addScan(const std::vector<Eigen::Vector3f>& pts,
 	// minimum is above the ground until the ground is seen: a wide band).
 	// Tag: time segment << 2 | range class (never 0); 0: not kept apart.
 	const bool tagged = o_.dbh_segment_scans > 0;
+	// (16 bits with the range class: segments past 16383, i.e. 45 hours
+	// of 10 Hz scans in 100-scan segments, share the last one.)
 	const uint32_t segment =
-	    tagged
-	        ? uint32_t(1 + (stats_.scans - 1) / uint64_t(o_.dbh_segment_scans))
-	        : 0;
+	    tagged ? uint32_t(std::min<uint64_t>(
+	                 1 + (stats_.scans - 1) / uint64_t(o_.dbh_segment_scans),
+	                 16383))
+	           : 0;
 	auto tag = [&](const Eigen::Vector3f& p)
 	{
 		const double r = (p.head<2>() - s2).norm();
