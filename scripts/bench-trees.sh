@@ -55,13 +55,14 @@ for s in $SCENARIOS; do
       --traj "$sim/gt_trajectory.tum" --json "$run/eval.json" >"$run/eval.txt"
     j="$run/eval.json"; r="$run/run_summary.json"
     # "dbh": {... "rmse_m": .., "mape_pct": .., "bias_m": ..}, "position_err_m": {"rmse": ..}
-    rmse=$(python3 -c "import json;j=json.load(open('$j'));d=j['dbh'];p=j['position_err_m'];t=j['detection'];print(t['recall'],t['precision'],d['rmse_m'],d['bias_m'],d['mape_pct'],p['rmse'])")
+    # (DBH figures in cm, fixed-point: bc reads no exponents like -5e-05.)
+    rmse=$(python3 -c "import json;j=json.load(open('$j'));d=j['dbh'];p=j['position_err_m'];t=j['detection'];print(t['recall'],t['precision'],'%.4f'%(100*d['rmse_m']),'%.4f'%(100*d['bias_m']),d['mape_pct'],p['rmse'])")
     read -r rec prec drmse dbias mape prmse <<<"$rmse"
     wall=$(field "$r" wall_seconds)
-    read -r share share_cpu <<<"$(python3 -c "import json;t=json.load(open('$r'))['tree_layer'];print(t['share_of_wall'],t['share_of_cpu'])")"
+    read -r share share_cpu <<<"$(python3 -c "import json;t=json.load(open('$r'))['tree_layer'];print('%.5f %.5f'%(t['share_of_wall'],t['share_of_cpu']))")"
     printf '%-9s %-10s %6s %7.3f %7.3f %7.2fcm %7.2fcm %7.2f %7.3fm %6s %8.1f %6.1f %7.1f\n' \
-      "$s" "$src" "$(field "$r" scans_mapped)" "$rec" "$prec" "$(echo "100*$drmse" | bc -l)" \
-      "$(echo "100*$dbias" | bc -l)" "$mape" "$prmse" "$(field "$r" trees)" "$wall" \
+      "$s" "$src" "$(field "$r" scans_mapped)" "$rec" "$prec" "$drmse" \
+      "$dbias" "$mape" "$prmse" "$(field "$r" trees)" "$wall" \
       "$(echo "100*$share" | bc -l)" "$(echo "100*$share_cpu" | bc -l)"
   done
 done
