@@ -586,6 +586,8 @@ TEST(TreeLayer, StoredVoxelsSortedOnePerCell)
 	for (double x = 0; x < 11; x += 0.25)
 		for (double y = 0; y < 1; y += 0.25) pts.emplace_back(x, y, 0.0f);
 	layer.addScan(pts, Eigen::Vector3d(5, -1, 1.5));
+	// The area seen: the 0.5 m ground cells of 11 m x 1 m.
+	EXPECT_EQ(layer.groundCells(), 22u * 2u);
 	const auto stored = layer.stemPoints(layer.columnOf(5, 0.5));
 	ASSERT_EQ(stored.size(), cells.size());
 	auto cellOf = [&](const Eigen::Vector3f& p)

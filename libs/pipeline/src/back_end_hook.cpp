@@ -431,12 +431,36 @@ void MappingPipeline::mergeTreeLayerPasses(const core::Trajectory& now)
 	// The map worker is idle (flushed): its counts can be read.
 	if (!tree_layer_) return;
 	const size_t voxels = tree_layer_->stats().stored_voxels;
-	// Half as many voxels again as at the last merge. Twice as many was
-	// tried (2026-12-04): a third fewer voxel moves on the robot run, but
-	// the merges' timing decides which stems blur (passes merged at an
-	// estimate that later changes), and on the 58-minute run one 56 cm
-	// stem read 84 cm (DBH RMSE 1.00 -> 1.73 cm).
-	if (2 * voxels < 3 * tree_voxels_at_merge_) return;
+	const double density = double(voxels) / double(std::max<size_t>(
+	                                            1, tree_layer_->groundCells()));
+	if (tree_layer_->detectsDuringRun())
+	{
+		// Online, a merge also moves the stems found so far with the
+		// corrections: half as many voxels again as at the last merge.
+		// Twice as many was tried (2026-12-04): a third fewer voxel moves
+		// on the robot run, but the merges' timing decides which stems
+		// blur (passes merged at an estimate that later changes), and on
+		// the 58-minute run one 56 cm stem read 84 cm.
+		if (2 * voxels < 3 * tree_voxels_at_merge_) return;
+	}
+	else
+	{
+		// Stems detected at the end: the final correction moves every voxel
+		// with its own scan's correction, and a merge during the run only
+		// bounds the passes piling up where the path comes back (each lap
+		// one more copy of the stems around it). Counted as stem-band voxels
+		// per ground cell (the area seen): a merge when that grew by half
+		// since the last one, or since the first correction (one pass).
+		// By the voxel count alone, the robot run (new ground most of the
+		// way) merged 3 times, a quarter of the layer's CPU, and each merge
+		// froze its passes at an estimate that later closures moved.
+		if (tree_density_at_merge_ <= 0)
+		{
+			tree_density_at_merge_ = density;
+			return;
+		}
+		if (2 * density < 3 * tree_density_at_merge_) return;
+	}
 	const core::Trajectory mapped = withMerged(trajectory_, tree_merged_pose_);
 	auto C = std::make_shared<std::vector<
 	    Eigen::Isometry3f, Eigen::aligned_allocator<Eigen::Isometry3f>>>(
@@ -472,6 +496,7 @@ void MappingPipeline::mergeTreeLayerPasses(const core::Trajectory& now)
 	// The count after the merge is known only on the worker: the next
 	// merge waits for half as many again as before this one.
 	tree_voxels_at_merge_ = voxels;
+	tree_density_at_merge_ = density;
 	tree_merges_++;
 }
 

@@ -1155,6 +1155,13 @@ void TreeLayer::transformColumn(const ColumnKey& k, const Eigen::Isometry3d& T,
 	publish(map);
 }
 
+size_t TreeLayer::groundCells() const
+{
+	size_t n = 0;
+	for (const auto& [k, c] : cols_) n += c.lowest.size();
+	return n;
+}
+
 size_t TreeLayer::memoryBytes() const
 {
 	size_t n = core::hashMapBytes(cols_);

@@ -228,6 +228,9 @@ class MappingPipeline
 	std::vector<Eigen::Isometry3d, Eigen::aligned_allocator<Eigen::Isometry3d>>
 	    tree_merged_pose_;
 	size_t tree_voxels_at_merge_ = 0;
+	/** Stem-band voxels per ground cell at the last merge of the tree
+	 * layer's passes (or at the first correction); 0 before. */
+	double tree_density_at_merge_ = 0;
 	size_t tree_merges_ = 0;
 	/** The back-end's estimate of every scan mapped so far, after the
 	 * correction `C` with keyframe estimate `X`. */

@@ -138,6 +138,12 @@ class TreeLayer
 	/** Every column holding points, sorted (deterministic order). */
 	std::vector<ColumnKey> columns() const;
 	double columnSize() const { return column_m_; }
+	/** Whether update() detects stems during the run (the constructor's
+	 * `detect_during_run`). */
+	bool detectsDuringRun() const { return detect_during_run_; }
+	/** Ground cells (layer_ground_cell_m squares) holding a lowest point:
+	 * the area the layer has seen. */
+	size_t groundCells() const;
 	/** Stem-band points of a column (voxel centroids), for diagnostics. */
 	std::vector<Eigen::Vector3f> stemPoints(const ColumnKey& k) const;
 	const TreeLayerStats& stats() const { return stats_; }
