@@ -17,18 +17,20 @@ namespace
 struct Run
 {
 	int code = -1;
-	std::string output;	 // stdout + stderr
+	std::string output;  // stdout + stderr
 };
 
-Run run(const std::string& args)
+/** `env`: assignments put before the command, e.g. "A=1 ". */
+Run run(const std::string& args, const std::string& env = "")
 {
-	const std::string cmd =
-		std::string(FOREST_SLAM_BIN_DIR) + "/forest-slam " + args + " 2>&1";
+	const std::string cmd = env + std::string(FOREST_SLAM_BIN_DIR) +
+	                        "/forest-slam " + args + " 2>&1";
 	Run r;
 	FILE* p = popen(cmd.c_str(), "r");
 	std::array<char, 4096> buf;
 	size_t n;
-	while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) r.output.append(buf.data(), n);
+	while ((n = fread(buf.data(), 1, buf.size(), p)) > 0)
+		r.output.append(buf.data(), n);
 	const int st = pclose(p);
 	r.code = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
 	return r;
@@ -37,7 +39,7 @@ Run run(const std::string& args)
 std::string tmpDir(const std::string& name)
 {
 	const auto d = fs::temp_directory_path() /
-				   ("fs_app_" + std::to_string(::getpid()) + "_" + name);
+	               ("fs_app_" + std::to_string(::getpid()) + "_" + name);
 	fs::create_directories(d);
 	return d.string();
 }
@@ -94,11 +96,11 @@ TEST(ForestSlamApp, MapsARealMrptRawlog)
 	const auto ini = d + "/real.ini";
 	// The MRPT sample labels its scan "Velodyne1_SCAN".
 	std::ofstream(ini) << "[pipeline]\nlidar_label = Velodyne1_SCAN\n";
-	const std::string rawlog =
-		std::string(FOREST_SLAM_SHARED_DIR) + "/data/mrpt/rot_scan_velodyne.rawlog";
+	const std::string rawlog = std::string(FOREST_SLAM_SHARED_DIR) +
+	                           "/data/mrpt/rot_scan_velodyne.rawlog";
 	const auto out = d + "/out";
-	const auto r = run("map --config " + ini + " --rawlog " + rawlog + " --out " +
-					   out + " --progress log");
+	const auto r = run("map --config " + ini + " --rawlog " + rawlog +
+	                   " --out " + out + " --progress log");
 	ASSERT_EQ(r.code, 0) << r.output;
 	EXPECT_NE(r.output.find("1 mapped of 1"), std::string::npos) << r.output;
 	const auto traj = forest_slam::io::readTum(out + "/trajectory.tum");
@@ -108,9 +110,47 @@ TEST(ForestSlamApp, MapsARealMrptRawlog)
 	std::ifstream js(out + "/run_summary.json");
 	std::stringstream ss;
 	ss << js.rdbuf();
-	EXPECT_NE(ss.str().find("\"scans_mapped\": 1"), std::string::npos) << ss.str();
+	EXPECT_NE(ss.str().find("\"scans_mapped\": 1"), std::string::npos)
+	    << ss.str();
 	EXPECT_GT(fs::file_size(out + "/forest.map"), 10000u);
 	// No temporary files left behind.
 	for (const auto& e : fs::directory_iterator(out))
-		EXPECT_EQ(e.path().string().find(".tmp."), std::string::npos) << e.path();
+		EXPECT_EQ(e.path().string().find(".tmp."), std::string::npos)
+		    << e.path();
+}
+
+// forest-slam re-executes itself with glibc's malloc on transparent huge
+// pages (core::useHugePages), unless told not to; run_summary.json says
+// which way the run went.
+TEST(ForestSlamApp, HeapOnHugePagesUnlessTurnedOff)
+{
+	std::ifstream mode("/sys/kernel/mm/transparent_hugepage/enabled");
+	std::string line;
+	if (!mode || !std::getline(mode, line) ||
+	    line.find("[never]") != std::string::npos)
+		GTEST_SKIP() << "the kernel has no transparent huge pages";
+	const auto d = tmpDir("huge");
+	const auto ini = d + "/real.ini";
+	std::ofstream(ini) << "[pipeline]\nlidar_label = Velodyne1_SCAN\n";
+	const std::string rawlog = std::string(FOREST_SLAM_SHARED_DIR) +
+	                           "/data/mrpt/rot_scan_velodyne.rawlog";
+	for (const bool on : {true, false})
+	{
+		const auto out = d + (on ? "/on" : "/off");
+		// The user's own tunables are kept alongside.
+		const auto r =
+		    run("map --config " + ini + " --rawlog " + rawlog + " --out " +
+		            out + " --progress log",
+		        on ? "env -u FOREST_SLAM_HUGE_PAGES "
+		             "GLIBC_TUNABLES=glibc.malloc.check=0 "
+		           : "env -u GLIBC_TUNABLES FOREST_SLAM_HUGE_PAGES=0 ");
+		ASSERT_EQ(r.code, 0) << r.output;
+		std::ifstream js(out + "/run_summary.json");
+		std::stringstream ss;
+		ss << js.rdbuf();
+		EXPECT_NE(ss.str().find(on ? "\"heap_huge_pages\": true"
+		                           : "\"heap_huge_pages\": false"),
+		          std::string::npos)
+		    << ss.str();
+	}
 }

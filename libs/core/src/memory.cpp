@@ -5,6 +5,10 @@
 #include <unistd.h>
 
 #include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <string>
 
 namespace forest_slam::core
 {
@@ -41,6 +45,53 @@ double threadCpuSeconds()
 	timespec t{};
 	if (clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t) != 0) return 0;
 	return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
+}
+
+namespace
+{
+/** The value of glibc.malloc.hugetlb in GLIBC_TUNABLES, or "" if unset. */
+std::string hugetlbTunable()
+{
+	const char* t = std::getenv("GLIBC_TUNABLES");
+	if (!t) return "";
+	const std::string s(t), key = "glibc.malloc.hugetlb=";
+	const size_t at = s.find(key);
+	if (at == std::string::npos) return "";
+	const size_t from = at + key.size();
+	return s.substr(from, s.find(':', from) - from);
+}
+}  // namespace
+
+bool heapOnHugePages()
+{
+	const std::string v = hugetlbTunable();
+	return !v.empty() && v != "0";
+}
+
+void useHugePages(char** argv)
+{
+	if (std::getenv("GLIBC_TUNABLES") &&
+	    std::strstr(std::getenv("GLIBC_TUNABLES"), "glibc.malloc.hugetlb"))
+		return;  // set already: by the user, or this is the re-execution
+	const char* off = std::getenv(kHugePagesEnv);
+	if (off && std::strcmp(off, "0") == 0) return;
+	std::ifstream mode("/sys/kernel/mm/transparent_hugepage/enabled");
+	std::string line;
+	if (!mode || !std::getline(mode, line) ||
+	    line.find("[never]") != std::string::npos)
+		return;
+	const char* old = std::getenv("GLIBC_TUNABLES");
+	const std::string value = old && *old
+	                              ? std::string(old) + ":glibc.malloc.hugetlb=1"
+	                              : std::string("glibc.malloc.hugetlb=1");
+	if (setenv("GLIBC_TUNABLES", value.c_str(), 1) != 0) return;
+	execv("/proc/self/exe", argv);
+	// exec failed (no /proc, say): the run goes on with 4 kB pages, and the
+	// environment as it was.
+	if (old)
+		setenv("GLIBC_TUNABLES", old, 1);
+	else
+		unsetenv("GLIBC_TUNABLES");
 }
 
 }  // namespace forest_slam::core

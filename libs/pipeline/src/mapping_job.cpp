@@ -475,6 +475,8 @@ std::vector<std::string> writeOutputs(const MappingPipeline& p,
 		       << "  \"scans_per_second_end_to_end\": "
 		       << (total_wall > 0 ? s.scans_mapped / total_wall : 0) << ",\n"
 		       << "  \"cpu_seconds\": " << cpu_s << ",\n"
+		       << "  \"heap_huge_pages\": "
+		       << (core::heapOnHugePages() ? "true" : "false") << ",\n"
 		       << "  \"stage_ms\": " << stageTimesJson(s.stage_ms, s.tree_ms)
 		       << ",\n"
 		       << "  \"map_edge_voxels\": " << p.forestMap().edgePointCount()
