@@ -28,9 +28,12 @@ double ground(double x, double y)
 }
 
 /** One scan from `s`: the stem sides facing the sensor (0–5 m above
- * ground) and the ground around the sensor, 5 mm noise. */
+ * ground; from `foot_hidden_m` up) and the ground around the sensor
+ * (none within `ground_gap_m` of a stem's surface), 5 mm noise. */
 std::vector<Eigen::Vector3f> scan(const std::vector<Stem>& stems,
-                                  const Eigen::Vector3d& s, std::mt19937& rng)
+                                  const Eigen::Vector3d& s, std::mt19937& rng,
+                                  double foot_hidden_m = 0,
+                                  double ground_gap_m = -1)
 {
 	std::normal_distribution<double> g(0, 0.005);
 	std::vector<Eigen::Vector3f> pts;
@@ -42,7 +45,7 @@ std::vector<Eigen::Vector3f> scan(const std::vector<Stem>& stems,
 		for (double a = -75; a <= 75; a += 4)
 		{
 			const double ang = facing + a * M_PI / 180;
-			for (double h = 0; h < 5; h += 0.03)
+			for (double h = foot_hidden_m; h < 5; h += 0.03)
 			{
 				const double r = t.r + g(rng);
 				pts.emplace_back(t.x + r * std::cos(ang),
@@ -54,7 +57,10 @@ std::vector<Eigen::Vector3f> scan(const std::vector<Stem>& stems,
 		for (double y = -18; y <= 18; y += 0.3)
 		{
 			const double px = s.x() + x, py = s.y() + y;
-			pts.emplace_back(px, py, ground(px, py) + g(rng));
+			bool hidden = false;
+			for (const auto& t : stems)
+				hidden |= std::hypot(px - t.x, py - t.y) < t.r + ground_gap_m;
+			if (!hidden) pts.emplace_back(px, py, ground(px, py) + g(rng));
 		}
 	return pts;
 }
@@ -284,14 +290,15 @@ namespace
  * x = `jump_at_x` on, the poses are `jump_m` off towards -x. */
 void drivePastStems(const TreeOptions& o, const std::vector<Stem>& stems,
                     map::CForestMap& m, double jump_at_x = 1e9,
-                    float jump_m = 0)
+                    float jump_m = 0, double foot_hidden_m = 0,
+                    double ground_gap_m = -1)
 {
 	TreeLayer layer(o, 20.0);
 	std::mt19937 rng(5);
 	for (double x = 5; x <= 60; x += 1.0)
 	{
 		const Eigen::Vector3d s(x, 0, ground(x, 0) + 1.5);
-		auto pts = scan(stems, s, rng);
+		auto pts = scan(stems, s, rng, foot_hidden_m, ground_gap_m);
 		const Eigen::Vector3f jump(x >= jump_at_x ? -jump_m : 0.f, 0, 0);
 		for (auto& p : pts) p += jump;
 		layer.addScan(pts, s + jump.cast<double>());
@@ -337,6 +344,28 @@ TEST(TreeLayer, SegmentShiftsAbsorbAPoseJump)
 			EXPECT_LT(max_err, 0.01);
 		}
 	}
+}
+
+// The same where the ground within 0.4 m of the stems is never seen and
+// their foot is hidden below 1.1 m (shrubs): the ground cells along a stem
+// then hold stem points only, and breast height measured from their lowest
+// point fell below the band kept per time segment (so the two rings were
+// merged into one voxel set). The band is measured from the lowest point
+// within 1 m.
+TEST(TreeLayer, SegmentShiftsAbsorbAPoseJumpWhereTheFootIsHidden)
+{
+	const std::vector<Stem> stems = {
+	    {24, 5, 0.15}, {27, -6, 0.2}, {33, 4, 0.12}};
+	TreeOptions o;
+	o.dbh_segment_scans = 5;
+	o.good_rmse_m = 0.005;
+	o.dbh_range_step_m = 0;
+	map::CForestMap m;
+	drivePastStems(o, stems, m, 28, 0.04f, 1.1, 0.4);
+	ASSERT_EQ(m.trees().size(), stems.size());
+	for (const auto& t : stems)
+		EXPECT_NEAR(nearestTree(m, t).dbh_m, 2 * t.r, 0.01)
+		    << "stem at " << t.x << ", " << t.y;
 }
 
 // Without pose errors the stems' rings are sharp: the multi-view fit, whose

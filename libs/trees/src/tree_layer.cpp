@@ -687,6 +687,8 @@ void TreeLayer::addScan(const std::vector<Eigen::Vector3f>& pts,
 	// kept for pass 2.
 	sc.column_of_cell.resize(sc.lowest_of_cell.size());
 	sc.low_z.resize(sc.lowest_of_cell.size());
+	sc.tag_z.resize(sc.lowest_of_cell.size());
+	sc.touched_by.resize(sc.lowest_of_cell.size(), 0);
 	ColumnKey last_key{INT32_MIN, INT32_MIN};
 	Column* last_col = nullptr;
 	for (const int32_t c : sc.touched)
@@ -703,11 +705,36 @@ void TreeLayer::addScan(const std::vector<Eigen::Vector3f>& pts,
 		if (added || p.z() < low.z()) low = p;
 		sc.column_of_cell[size_t(c)] = last_col;
 		sc.low_z[size_t(c)] = low.z();
+		sc.touched_by[size_t(c)] = stats_.scans;
 		sc.lowest_of_cell[size_t(c)] = -1;  // the grid is clean for next scan
 	}
+	// The time segments' height reference: the lowest point within
+	// kTagReach cells. A big stem covers whole ground cells whose lowest
+	// point is on the stem itself (the ground under it is never seen, and
+	// shrubs may hide its foot): measured from there, its breast height
+	// fell below the tagged band, its points there were merged across
+	// passes and its ring blurred (58-minute run: stems of 56 and 62 cm
+	// read 6 and 16 cm too large). The ground next to it is seen.
+	constexpr int kTagReach = 2;  // cells: 1 m at 0.5 m cells
+	for (const int32_t c : sc.touched)
+	{
+		const int cx = c % side, cy = c / side;
+		float z = sc.low_z[size_t(c)];
+		for (int y = std::max(0, cy - kTagReach);
+		     y <= std::min(side - 1, cy + kTagReach); y++)
+			for (int x = std::max(0, cx - kTagReach);
+			     x <= std::min(side - 1, cx + kTagReach); x++)
+			{
+				const size_t n = size_t(x + side * y);
+				if (sc.touched_by[n] == stats_.scans)
+					z = std::min(z, sc.low_z[n]);
+			}
+		sc.tag_z[size_t(c)] = z;
+	}
 	// Pass 2: the stem band above the lowest point of the cell so far;
-	// near breast height tagged with the scan's time segment (the cell
-	// minimum is above the ground until the ground is seen: a wide band).
+	// near breast height (above the lowest point within kTagReach cells)
+	// tagged with the scan's time segment (the minimum is above the ground
+	// until the ground is seen: a wide band).
 	// Tag: time segment << 2 | range class (never 0); 0: not kept apart.
 	const bool tagged = o_.dbh_segment_scans > 0;
 	// (16 bits with the range class: segments past 16383, i.e. 45 hours
@@ -736,13 +763,14 @@ void TreeLayer::addScan(const std::vector<Eigen::Vector3f>& pts,
 		const float low_z = sc.low_z[size_t(c)];
 		const float h = pts[i].z() - low_z;
 		if (h < o_.layer_min_hag_m || h > o_.layer_max_hag_m) continue;
+		const float h_tag = pts[i].z() - sc.tag_z[size_t(c)];
 		col->dirty = true;
 		const Eigen::Vector3f d = pts[i] - sensor.cast<float>();
 		const float n = d.norm();
-		col->stem.add(pts[i],
-		              n > 0 ? Eigen::Vector3f(d / n) : Eigen::Vector3f::Zero(),
-		              tagged && h >= seg_lo && h <= seg_hi ? tag(pts[i]) : 0,
-		              t_rel, pass_);
+		col->stem.add(
+		    pts[i], n > 0 ? Eigen::Vector3f(d / n) : Eigen::Vector3f::Zero(),
+		    tagged && h_tag >= seg_lo && h_tag <= seg_hi ? tag(pts[i]) : 0,
+		    t_rel, pass_);
 	}
 	stats_.stored_voxels = 0;
 	for (auto& [k, c] : cols_)

@@ -386,6 +386,11 @@ class TreeLayer
 		std::vector<int32_t> lowest_of_cell, cell_of_point, touched;
 		std::vector<Column*> column_of_cell;
 		std::vector<float> low_z;
+		/** Lowest of low_z over the cell's neighbourhood (the time
+		 * segments' height reference), and the scan that last touched
+		 * each cell (stats_.scans; 0: none yet). */
+		std::vector<float> tag_z;
+		std::vector<uint64_t> touched_by;
 	};
 	ScanCells scan_cells_;
 
