@@ -125,7 +125,10 @@ OutputSummary writeRunOutputs(const OutputInputs& in, const std::string& dir)
 	    [&](const std::string& name, std::chrono::steady_clock::time_point t0)
 	{
 		sum.files.push_back({dir + "/" + name, describeOutput(name)});
-		FS_LOG_INFO("wrote " << name << " in " << secondsSince(t0) << " s");
+		// The peak so far tells which output raised the run's peak RSS.
+		FS_LOG_INFO("wrote " << name << " in " << secondsSince(t0)
+		                     << " s; peak RSS so far " << core::peakRssMb()
+		                     << " MB");
 	};
 	const auto to_output = [&](const Eigen::Vector3d& p)
 	{ return geo ? geo->toProjected(p) : p; };

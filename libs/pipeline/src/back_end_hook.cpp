@@ -378,7 +378,9 @@ void MappingPipeline::correctTreeLayer(const core::Trajectory& as_mapped)
 	           .count()
 	    << " s; " << redetect
 	    << " columns whose passes disagreed are detected again; "
-	    << tree_merges_ << " merges of the passes during the run");
+	    << tree_merges_
+	    << " merges of the passes during the run; peak RSS so far "
+	    << core::peakRssMb() << " MB");
 }
 
 void MappingPipeline::correctDenseMap(const core::Trajectory& mapped)

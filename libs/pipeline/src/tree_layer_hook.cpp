@@ -2,6 +2,8 @@
 // scan, in the map frame, go to trees::TreeLayer, which detects the stems of
 // the submap columns the sensor has left and updates the CForestMap tree
 // layer (doc/trees.md "Tree layer of a SLAM run").
+#include <forest_slam/core/log.h>
+#include <forest_slam/core/memory.h>
 #include <forest_slam/pipeline/mapping_pipeline.h>
 
 #include <malloc.h>
@@ -70,6 +72,9 @@ void MappingPipeline::finishTreeLayer()
 	tree_layer_->releaseStemVoxels();
 	malloc_trim(0);  // glibc keeps the freed heap of the map thread otherwise
 	stats_.tree_finish_ms = msSince(t0);
+	FS_LOG_INFO("tree layer: end-of-run detection in "
+	            << 1e-3 * stats_.tree_finish_ms << " s; peak RSS so far "
+	            << core::peakRssMb() << " MB");
 }
 
 }  // namespace forest_slam::pipeline
