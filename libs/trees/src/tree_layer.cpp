@@ -22,6 +22,9 @@ namespace
  * long run). */
 constexpr size_t kTwoAtOnceVoxels = 4000000;
 
+/** Points whose findTrees buffers a thread keeps between columns (40 MB). */
+constexpr size_t kKeptScratchPoints = size_t(1) << 20;
+
 /** findTrees' per-thread buffers. */
 struct ColumnScratch
 {
@@ -35,6 +38,20 @@ struct ColumnScratch
 		times.clear();
 		seg.pts.clear(), seg.dirs.clear(), seg.segment.clear();
 		seg.range_class.clear();
+	}
+	/** Frees the buffers that grew past `points` (a big column's): kept,
+	 * each thread held the capacity of the biggest column it had seen, so
+	 * the two threads of the end-of-run detection held two big columns'
+	 * buffers whatever they read (kTwoAtOnceVoxels bounded the work only);
+	 * the 58-minute run peaked there, 330 MB above its correction. */
+	void trim(size_t points)
+	{
+		auto cut = [points](auto& v)
+		{
+			if (v.capacity() > points) std::decay_t<decltype(v)>().swap(v);
+		};
+		cut(pts), cut(ground), cut(dirs), cut(above), cut(times);
+		cut(seg.pts), cut(seg.dirs), cut(seg.segment), cut(seg.range_class);
 	}
 };
 ColumnScratch& columnScratch()
@@ -840,6 +857,7 @@ size_t TreeLayer::finish(map::CForestMap& map)
 				const auto t0 = std::chrono::steady_clock::now();
 				found[i] = findTrees(due[i], map);
 				ms[i] = msSince(t0);
+				columnScratch().trim(kKeptScratchPoints);
 			}
 			catch (...)
 			{
@@ -882,6 +900,7 @@ void TreeLayer::detectColumn(const ColumnKey& k, const map::CForestMap& map)
 {
 	const auto t0 = std::chrono::steady_clock::now();
 	auto found = findTrees(k, map);
+	columnScratch().trim(kKeptScratchPoints);
 	giveTrees(k, std::move(found), msSince(t0));
 }
 
