@@ -12,6 +12,7 @@
 #include <random>
 #include <set>
 #include <tuple>
+#include <utility>
 
 using namespace forest_slam;
 using namespace forest_slam::trees;
@@ -144,11 +145,15 @@ TEST(TreeLayer, SpilledColumnsReloadIdentically)
 {
 	// A column spilled again after a revisit is merged with its disk copy
 	// in chunks: the shipped chunk, and one of 5 voxels that crosses every
-	// chunk border many times; the results must not depend on it.
+	// chunk border many times; the results must not depend on it. And with
+	// voxels of 3 cm: a neighbour's margin read from disk into a copy once
+	// decoded the centroids' fixed-point offsets at the 2 cm scale.
 	const size_t shipped = TreeLayer::spill_merge_chunk_voxels;
-	for (const size_t chunk : {shipped, size_t(5)})
+	for (const auto& [chunk, voxel_m] :
+	     {std::pair<size_t, double>{shipped, 0.02}, {5, 0.02}, {shipped, 0.03}})
 	{
-		SCOPED_TRACE("merge chunk " + std::to_string(chunk));
+		SCOPED_TRACE("merge chunk " + std::to_string(chunk) + ", voxel " +
+		             std::to_string(voxel_m));
 		TreeLayer::spill_merge_chunk_voxels = chunk;
 
 		// Out along the strip and back: columns left behind go to disk, are
@@ -162,6 +167,7 @@ TEST(TreeLayer, SpilledColumnsReloadIdentically)
 		TreeOptions o_mem, o_spill;
 		o_mem.layer_spill_to_disk = false;
 		o_spill.layer_spill_to_disk = true;
+		o_mem.layer_voxel_m = o_spill.layer_voxel_m = voxel_m;
 		TreeLayer mem(o_mem, 20.0), spill(o_spill, 20.0);
 		map::CForestMap m_mem, m_spill;
 		std::mt19937 rng(11);
