@@ -73,9 +73,10 @@ struct TreeOptions : public mrpt::config::CLoadableOptions
 	 * and per range class, and the DBH circle of a blurred stem (fit RMSE
 	 * above good_rmse_m) is finally fitted with one small shift per segment
 	 * (refineCircleSegments), so pose errors between segments do not blur
-	 * the ring. 100 scans (10 s): handheld DBH RMSE 1.49 -> 1.06 cm
-	 * (doc/trees.md). */
-	int dbh_segment_scans = 100;
+	 * the ring. 100 scans (10 s): handheld DBH RMSE 1.49 -> 1.06 cm; 200
+	 * (20 s) since 2026-12-04: fewer free shifts for a stem seen from one
+	 * side, whose shifts and radius trade off (doc/trees.md). */
+	int dbh_segment_scans = 200;
 	/** Prior (1σ per axis) on a segment's shift. */
 	double dbh_segment_shift_m = 0.05;
 	/** Multi-view DBH: breast-height voxels are also kept per class of
