@@ -347,8 +347,7 @@ void TreeLayer::SortedVoxels::loadInto(const core::SpillFile* f,
 	// The buffers stay with the thread: a detection reads nine columns, and
 	// fresh vectors of tens of MB came back as page faults (a tenth of the
 	// end-of-run detection).
-	copy.voxel_m_ = voxel_m_;
-	copy.offset_scale_ = offset_scale_;  // the offsets are in its units
+	copy.setVoxelSize(voxel_m_);
 	copy.voxels_.clear();
 	copy.pending_.clear();
 	copy.spilled_ = copy.on_disk_ = false;

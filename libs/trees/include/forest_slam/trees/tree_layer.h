@@ -168,10 +168,7 @@ class TreeLayer
 	class SortedVoxels
 	{
 	   public:
-		explicit SortedVoxels(double voxel_m = 0.02)
-		    : voxel_m_(voxel_m), offset_scale_(float(65534.0 / voxel_m))
-		{
-		}
+		explicit SortedVoxels(double voxel_m = 0.02) { setVoxelSize(voxel_m); }
 		/** `segment`: the time segment of the point's scan, or 0 (merged
 		 * with every segment's voxel of the cell). */
 		void add(const Eigen::Vector3f& p, const Eigen::Vector3f& dir,
@@ -339,6 +336,13 @@ class TreeLayer
 		static Eigen::Vector3f dirOf(const Voxel& v)
 		{
 			return Eigen::Vector3f(v.dir[0], v.dir[1], v.dir[2]) / kDirScale;
+		}
+		/** The voxel size and the offsets' fixed-point scale, together (a
+		 * copy given the size only decoded offsets at the default's). */
+		void setVoxelSize(double voxel_m)
+		{
+			voxel_m_ = voxel_m;
+			offset_scale_ = float(65534.0 / voxel_m);
 		}
 		double voxel_m_;
 		float offset_scale_;  ///< fixed-point steps per metre of offset
