@@ -101,7 +101,15 @@ TEST(TreeLayer, ColumnsDetectedAsTheSensorLeavesThem)
 		if (x == 51) trees_before_end = m.trees().size();
 	}
 	EXPECT_GE(trees_before_end, 3u) << "column 0 not published during the run";
+	// The CPU of finish() is counted apart from the updates': both are
+	// part of the layer's CPU, and the columns left at the end cost some.
+	const double update_cpu_ms = layer.stats().cpu_ms;
+	EXPECT_GT(update_cpu_ms, 0.0);
+	EXPECT_EQ(layer.stats().finish_cpu_ms, 0.0);
 	layer.finish(m);
+	EXPECT_GT(layer.stats().finish_cpu_ms, 0.0);
+	EXPECT_NEAR(layer.stats().cpu_ms - layer.stats().finish_cpu_ms,
+	            update_cpu_ms, 1e-9);
 	ASSERT_EQ(m.trees().size(), stems.size());
 	for (const auto& t : stems)
 	{

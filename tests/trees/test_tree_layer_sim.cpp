@@ -110,6 +110,13 @@ TEST(TreeLayerSim, TinyScenarioWithGroundTruthPoses)
 	EXPECT_LT(cpu_ms, 1000 * s["cpu_seconds"].asDouble());
 	EXPECT_NEAR(s["tree_layer"]["share_of_cpu"].asDouble(),
 	            cpu_ms / (1000 * s["cpu_seconds"].asDouble()), 1e-3);
+	// The updates' part of it: a recorded run detects its stems at the end
+	// (finish), so the updates cost less than the whole, but not nothing.
+	const double update_ms = s["tree_layer"]["update_cpu_ms"].asDouble();
+	EXPECT_GT(update_ms, 0.0);
+	EXPECT_LT(update_ms, cpu_ms);
+	EXPECT_NEAR(s["tree_layer"]["update_share_of_cpu"].asDouble(),
+	            update_ms / (1000 * s["cpu_seconds"].asDouble()), 1e-3);
 	EXPECT_EQ(s["trees"].asUInt(), j["inputs"]["est_trees"].asUInt());
 	if (!HasFailure()) fs::remove_all(dir);
 }

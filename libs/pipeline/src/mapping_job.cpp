@@ -435,6 +435,10 @@ std::vector<std::string> writeOutputs(const MappingPipeline& p,
 	// Its CPU time on every thread it uses (the end-of-run detections and
 	// the corrections run on two): its cost in the process CPU.
 	const double tree_cpu_ms = layer ? layer->stats().cpu_ms : 0;
+	// Of it, the updates (store, spill, corrections, detections during the
+	// run) apart from the detection of every column at the end (finish).
+	const double tree_update_cpu_ms =
+	    layer ? tree_cpu_ms - layer->stats().finish_cpu_ms : 0;
 	const std::string summary = dir + "/run_summary.json";
 	core::writeFileAtomically(
 	    summary,
@@ -492,6 +496,9 @@ std::vector<std::string> writeOutputs(const MappingPipeline& p,
 		                              : 0)
 		       << ", \"cpu_ms\": " << tree_cpu_ms << ", \"share_of_cpu\": "
 		       << (cpu_s > 0 ? tree_cpu_ms / (1000 * cpu_s) : 0)
+		       << ", \"update_cpu_ms\": " << tree_update_cpu_ms
+		       << ", \"update_share_of_cpu\": "
+		       << (cpu_s > 0 ? tree_update_cpu_ms / (1000 * cpu_s) : 0)
 		       << ", \"finish_ms\": " << s.tree_finish_ms
 		       << ", \"correct_ms\": "
 		       << (layer ? layer->stats().correct_ms : 0)

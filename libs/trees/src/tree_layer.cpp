@@ -817,6 +817,14 @@ size_t TreeLayer::update(const Eigen::Vector3d& sensor, map::CForestMap& map)
 
 size_t TreeLayer::finish(map::CForestMap& map)
 {
+	const double cpu_before_ms = stats_.cpu_ms;
+	const size_t n = detectAllDirty(map);
+	stats_.finish_cpu_ms += stats_.cpu_ms - cpu_before_ms;
+	return n;
+}
+
+size_t TreeLayer::detectAllDirty(map::CForestMap& map)
+{
 	const CpuTally cpu(stats_.cpu_ms);
 	std::vector<ColumnKey> due;
 	for (const auto& [k, c] : cols_)

@@ -60,6 +60,11 @@ struct TreeLayerStats
 	/** CPU time of all the layer's calls, on every thread they use
 	 * (thread clocks): the share of the process CPU it costs. */
 	double cpu_ms = 0;
+	/** Of cpu_ms: finish(), the detection of every column left at the end
+	 * of the run (a recorded run detects its stems there only). The rest
+	 * is the updates: storing scans, spilling, corrections, detections
+	 * during the run. */
+	double finish_cpu_ms = 0;
 	std::vector<double> detect_ms_each;  ///< per column detection
 	size_t stored_voxels = 0;            ///< stem-band voxels now
 	/** Stem-band voxels when releaseStemVoxels() freed them (0 before). */
@@ -415,6 +420,8 @@ class TreeLayer
 	                             const Eigen::Vector2f& hi) const;
 	/** Merges every column's buffered points (before detections, which
 	 * then only read). */
+	/** finish()'s work: every column with new points, two at a time. */
+	size_t detectAllDirty(map::CForestMap& map);
 	void compactAll();
 	std::unordered_map<ColumnKey, Column, ColumnKeyHash> cols_;
 	uint32_t next_id_ = 1;
