@@ -418,10 +418,10 @@ class TreeLayer
 	const SortedVoxels& readable(const Column& c, SortedVoxels& copy,
 	                             const Eigen::Vector2f& lo,
 	                             const Eigen::Vector2f& hi) const;
-	/** Merges every column's buffered points (before detections, which
-	 * then only read). */
 	/** finish()'s work: every column with new points, two at a time. */
 	size_t detectAllDirty(map::CForestMap& map);
+	/** Merges every column's buffered points (before detections, which
+	 * then only read). */
 	void compactAll();
 	std::unordered_map<ColumnKey, Column, ColumnKeyHash> cols_;
 	uint32_t next_id_ = 1;
