@@ -11,6 +11,7 @@
 
 using forest_slam::odometry::LocalMap;
 using forest_slam::odometry::LocalMapOptions;
+using forest_slam::odometry::MatchReach;
 using forest_slam::odometry::PlaneRow;
 using forest_slam::odometry::RegistrationOptions;
 
@@ -72,7 +73,9 @@ TEST(LocalMap, StemModelMatchesTheSurfaceBeyondTheSeenArc)
 		LocalMap map(stemOptions(stem == 1));
 		map.insert({}, side);
 		PlaneRow row;
-		ASSERT_TRUE(map.matchPlane(x, 0.3, ro, row)) << "stem model " << stem;
+		MatchReach reach;
+		ASSERT_TRUE(map.matchPlane(x, 0.3, ro, row, reach))
+		    << "stem model " << stem;
 		err[stem] = std::abs(residual(row, x));
 	}
 	EXPECT_GT(err[0], 0.005) << "plane through the nearest points";
@@ -92,7 +95,8 @@ TEST(LocalMap, StemModelEdgeIsOneRadialRow)
 	const Eigen::Vector3f x = onStem(c, r + 0.01, -30, 1.0);
 	RegistrationOptions ro;
 	PlaneRow a, b;
-	ASSERT_TRUE(map.matchLine(x, 0.3, ro, a, b));
+	MatchReach reach;
+	ASSERT_TRUE(map.matchLine(x, 0.3, ro, a, b, reach));
 	const Eigen::Vector3d radial(std::cos(-30 * kDeg), std::sin(-30 * kDeg), 0);
 	EXPECT_GT(a.n.dot(radial), 0.999);
 	EXPECT_NEAR(residual(a, x), 0.01, 0.001);
@@ -112,9 +116,77 @@ TEST(LocalMap, StemModelLeavesWallsToPlanes)
 	const Eigen::Vector3f x(6.02f, 0.31f, 1.13f);
 	RegistrationOptions ro;
 	PlaneRow row;
-	ASSERT_TRUE(map.matchPlane(x, 0.3, ro, row));
+	MatchReach reach;
+	ASSERT_TRUE(map.matchPlane(x, 0.3, ro, row, reach));
 	EXPECT_GT(std::abs(row.n.x()), 0.999);
 	EXPECT_NEAR(std::abs(residual(row, x)), 0.02, 1e-4);
+}
+
+// A match says the smallest gate it passes (registerFeatures keeps it while
+// the gate shrinks): at that gate the search gives the same row; below it,
+// none or another match that passes the smaller gate. For the wall's plane,
+// a stem's surface (plane and edge features) and the coarse fallback.
+TEST(LocalMap, MatchesSayTheSmallestGateTheyPass)
+{
+	std::vector<Eigen::Vector3f> wall, sparse;
+	for (double z = 0.5; z <= 2.0; z += 0.05)
+		for (double y = -1; y <= 1; y += 0.05)
+			wall.emplace_back(6.0f, float(y), float(z));
+	// Ground rings 0.6 m apart: no 5 neighbours within 0.5 m, only the
+	// coarse voxels' plane.
+	for (double x = -10.9; x <= -9.1; x += 0.6)
+		for (double y = 0.05; y <= 1.95; y += 0.02)
+			sparse.emplace_back(float(x), float(y), 0.0f);
+	const Eigen::Vector2d c(3, 4);
+	const double r = 0.2;
+	const auto stem = arc(c, r, -150, -30);
+	LocalMap map(stemOptions(true));
+	map.insert(stem, wall);
+	map.insert({}, stem);
+	map.insert({}, sparse);
+	RegistrationOptions ro;
+	const std::vector<Eigen::Vector3f> planar_queries = {
+	    {6.02f, 0.31f, 1.13f},          // wall, 2 cm off
+	    onStem(c, r + 0.04, -90, 1.0),  // stem, 4 cm off
+	    {-9.5f, 1.0f, 0.07f}};          // coarse ground plane, 7 cm above
+	for (const auto& x : planar_queries)
+	{
+		PlaneRow row, again;
+		MatchReach reach, reach2;
+		ASSERT_TRUE(map.matchPlane(x, 0.3, ro, row, reach)) << x.transpose();
+		EXPECT_GT(reach.gate_needed, 0.01) << x.transpose();
+		if (x.x() < 0)  // the coarse plane: its distance, not a neighbour's
+		{
+			EXPECT_NEAR(reach.gate_needed, 0.07, 0.005);
+		}
+		EXPECT_LE(std::abs(residual(row, x)), reach.gate_needed + 1e-9);
+		ASSERT_TRUE(
+		    map.matchPlane(x, reach.gate_needed + 1e-6, ro, again, reach2));
+		EXPECT_EQ(again.n, row.n) << x.transpose();
+		EXPECT_EQ(again.d, row.d) << x.transpose();
+		EXPECT_EQ(reach2.gate_needed, reach.gate_needed);
+		const double below = reach.gate_needed - 0.005;
+		if (map.matchPlane(x, below, ro, again, reach2))
+		{
+			EXPECT_LE(reach2.gate_needed, below) << x.transpose();
+		}
+	}
+	const Eigen::Vector3f e = onStem(c, r + 0.03, -30, 1.0);
+	PlaneRow a, b, a2, b2;
+	MatchReach reach, reach2;
+	ASSERT_TRUE(map.matchLine(e, 0.3, ro, a, b, reach));
+	// The stem surface's row (3 cm) or the nearest edge point, a little
+	// farther.
+	EXPECT_GE(reach.gate_needed, 0.03 - 0.001);
+	EXPECT_LT(reach.gate_needed, 0.04);
+	ASSERT_TRUE(map.matchLine(e, reach.gate_needed + 1e-6, ro, a2, b2, reach2));
+	EXPECT_EQ(a2.n, a.n);
+	EXPECT_EQ(a2.d, a.d);
+	const double below = reach.gate_needed - 0.005;
+	if (map.matchLine(e, below, ro, a2, b2, reach2))
+	{
+		EXPECT_LE(reach2.gate_needed, below);
+	}
 }
 
 // Stem fits are cached per cell while the map is unchanged: after the map
@@ -128,11 +200,12 @@ TEST(LocalMap, StemFitsFollowTheMapWhenItChanges)
 	const Eigen::Vector3f x = onStem(c0, r, 180, 1.2);
 	RegistrationOptions ro;
 	PlaneRow row;
-	ASSERT_TRUE(map.matchPlane(x, 0.3, ro, row));
+	MatchReach reach;
+	ASSERT_TRUE(map.matchPlane(x, 0.3, ro, row, reach));
 	EXPECT_NEAR(residual(row, x), 0.0, 0.001);
 	map.clear();
 	map.insert({}, arc(c1, r, 120, 240));  // the stem 3 cm further on
-	ASSERT_TRUE(map.matchPlane(x, 0.3, ro, row));
+	ASSERT_TRUE(map.matchPlane(x, 0.3, ro, row, reach));
 	EXPECT_NEAR(residual(row, x), 0.03, 0.001);
 }
 

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Eigenvalues>
+#include <algorithm>
 #include <atomic>
 #include <fstream>
 #include <random>
@@ -131,17 +132,19 @@ struct CountingTarget : public odometry::RegistrationTarget
 	explicit CountingTarget(const odometry::FeatureTarget& t) : target(t) {}
 	bool matchPlane(const Eigen::Vector3f& x, double gate,
 	                const odometry::RegistrationOptions& o,
-	                odometry::PlaneRow& out) const override
+	                odometry::PlaneRow& out,
+	                odometry::MatchReach& reach) const override
 	{
 		searches++;
-		return target.matchPlane(x, gate, o, out);
+		return target.matchPlane(x, gate, o, out, reach);
 	}
 	bool matchLine(const Eigen::Vector3f& x, double gate,
 	               const odometry::RegistrationOptions& o,
-	               odometry::PlaneRow& a, odometry::PlaneRow& b) const override
+	               odometry::PlaneRow& a, odometry::PlaneRow& b,
+	               odometry::MatchReach& reach) const override
 	{
 		searches++;
-		return target.matchLine(x, gate, o, a, b);
+		return target.matchLine(x, gate, o, a, b, reach);
 	}
 };
 
@@ -175,12 +178,78 @@ TEST(Registration, RematchKeepsTheMatchesOfFeaturesThatBarelyMoved)
 			EXPECT_EQ(counting.searches, 4 * features);
 		else
 		{
-			// The fourth search has the gate of the third and the pose
-			// moved by far less than 5 mm: (nearly) every match is kept.
-			EXPECT_GE(counting.searches, 3 * features);
-			EXPECT_LT(counting.searches, 3 * features + features / 20);
+			// The pose moves by 0.25 m and 3 deg over the first two
+			// searches' LM steps: the first two search every feature; the
+			// third (the gate shrinks to 0.3 m) only those that still moved
+			// or whose match needs more; the fourth keeps (nearly) all.
+			// Before matches were kept across a shrinking gate, the third
+			// searched every feature too (3 to 3.05 per feature).
+			EXPECT_GT(counting.searches, 2 * features);
+			EXPECT_LT(counting.searches, 3 * features - features / 10);
 		}
 	}
+}
+
+/** Forwards to a FeatureTarget; the planar matches above z_far say they
+ * need a 0.4 m gate (and fail below it), as a neighbour 0.4 m away would. */
+struct FarMatchesTarget : public CountingTarget
+{
+	float z_far;
+	mutable std::atomic<size_t> far_searches{0};
+	FarMatchesTarget(const odometry::FeatureTarget& t, float z)
+	    : CountingTarget(t), z_far(z)
+	{
+	}
+	bool matchPlane(const Eigen::Vector3f& x, double gate,
+	                const odometry::RegistrationOptions& o,
+	                odometry::PlaneRow& out,
+	                odometry::MatchReach& reach) const override
+	{
+		if (!CountingTarget::matchPlane(x, gate, o, out, reach)) return false;
+		if (x.z() <= z_far) return true;
+		far_searches++;
+		reach.gate_needed = 0.4;
+		return gate >= 0.4;
+	}
+};
+
+TEST(Registration, AShrinkingGateKeepsTheMatchesThatStillPassIt)
+{
+	// Source on the target: the pose stays put, so a feature is searched
+	// again only when its match needs a wider gate than the current one.
+	const BoxScene scene = boxScene(3, false);
+	odometry::FeatureTarget tgt;
+	tgt.build(scene.edges, scene.planar);
+	std::vector<float> z;
+	for (const auto& p : scene.planar) z.push_back(p.z());
+	std::nth_element(z.begin(), z.begin() + z.size() / 2, z.end());
+	FarMatchesTarget target(tgt, z[z.size() / 2]);
+	odometry::RegistrationOptions o;
+	// The planar features the first search (1 m) matches, near and far.
+	size_t near_ok = 0, far_ok = 0;
+	for (const auto& p : scene.planar)
+	{
+		odometry::PlaneRow row;
+		odometry::MatchReach reach;
+		if (tgt.matchPlane(p, 1.0, o, row, reach))
+			(p.z() > target.z_far ? far_ok : near_ok)++;
+	}
+	ASSERT_GT(far_ok, 1000u);
+	ASSERT_GT(near_ok, 1000u);
+	o.outer_iterations = 4;  // gates 1, 0.55, 0.3, 0.3 m
+	o.converged_translation_m = 0;
+	o.converged_rotation_rad = 0;
+	o.rematch_distance_m = 0.005;
+	const auto r = odometry::registerFeatures(target, scene.edges, scene.planar,
+	                                          Eigen::Isometry3d::Identity(), o);
+	EXPECT_LT(r.T.translation().norm(), 1e-4);
+	// Every feature once; the far matches a second time at 0.3 m (they pass
+	// 0.55 m, not 0.3 m), where they fail, and stay failed; the failed
+	// searches are never repeated.
+	EXPECT_EQ(target.far_searches, 2 * far_ok);
+	EXPECT_EQ(target.searches,
+	          scene.edges.size() + scene.planar.size() + far_ok);
+	EXPECT_EQ(r.planar_matches, near_ok);
 }
 
 TEST(Registration, EstimatesTheSweepMotionFromFiringFractions)

@@ -84,6 +84,7 @@ struct LocalFit
 	Eigen::Vector3d mean;
 	Eigen::Vector3d evals;  // ascending
 	Eigen::Matrix3d evecs;
+	double nearest = 0;  ///< distance of the nearest neighbour
 };
 
 bool fitNeighbourhood(const KdTree& tree, const Eigen::Vector3f& q, int k,
@@ -93,6 +94,7 @@ bool fitNeighbourhood(const KdTree& tree, const Eigen::Vector3f& q, int k,
 	thread_local std::vector<float> d2;
 	if (tree.knn(q, k, idx, d2) < static_cast<size_t>(k)) return false;
 	if (d2.front() > gate * gate || d2.back() > extent * extent) return false;
+	fit.nearest = std::sqrt(d2.front());
 	fit.mean.setZero();
 	for (auto i : idx) fit.mean += tree.points()[i].cast<double>();
 	fit.mean /= idx.size();
@@ -111,8 +113,8 @@ bool fitNeighbourhood(const KdTree& tree, const Eigen::Vector3f& q, int k,
 }  // namespace
 
 bool FeatureTarget::matchPlane(const Eigen::Vector3f& x, double gate,
-                               const RegistrationOptions& o,
-                               PlaneRow& out) const
+                               const RegistrationOptions& o, PlaneRow& out,
+                               MatchReach& reach) const
 {
 	LocalFit fit;
 	if (!fitNeighbourhood(planar, x, o.knn, gate, o.max_neighbourhood_m, fit))
@@ -120,12 +122,13 @@ bool FeatureTarget::matchPlane(const Eigen::Vector3f& x, double gate,
 	if (fit.evals[0] > o.plane_flatness * fit.evals[1]) return false;
 	out.n = fit.evecs.col(0);
 	out.d = -out.n.dot(fit.mean);
+	reach.gate_needed = fit.nearest;
 	return true;
 }
 
 bool FeatureTarget::matchLine(const Eigen::Vector3f& x, double gate,
                               const RegistrationOptions& o, PlaneRow& a,
-                              PlaneRow& b) const
+                              PlaneRow& b, MatchReach& reach) const
 {
 	LocalFit fit;
 	if (!fitNeighbourhood(edges, x, o.edge_knn, gate, o.max_neighbourhood_m,
@@ -133,6 +136,7 @@ bool FeatureTarget::matchLine(const Eigen::Vector3f& x, double gate,
 		return false;
 	if (fit.evals[2] < o.line_ratio * fit.evals[1]) return false;
 	lineToPlanes(fit.mean, fit.evecs.col(2), a, b);
+	reach.gate_needed = fit.nearest;
 	return true;
 }
 
@@ -308,7 +312,9 @@ RegistrationResult registerFeatures(
 	    edge_rows(2 * src_edges.size());
 	std::vector<Eigen::Vector3f> plane_at(src_planar.size()),
 	    edge_at(src_edges.size());
-	double searched_gate = -1;  // gate of the previous search
+	std::vector<MatchReach> plane_reach(src_planar.size()),
+	    edge_reach(src_edges.size());
+	bool searched = false;
 	double lambda = 1e-4;
 	const bool sweep = priors.edge_fraction && priors.planar_fraction &&
 	                   priors.edge_fraction->size() == src_edges.size() &&
@@ -330,11 +336,13 @@ RegistrationResult registerFeatures(
 		// thread count.
 		const int np_src = static_cast<int>(src_planar.size());
 		const int ne_src = static_cast<int>(src_edges.size());
-		const float keep2 = gate == searched_gate
-		                        ? static_cast<float>(o.rematch_distance_m *
-		                                             o.rematch_distance_m)
-		                        : -1.f;
-		searched_gate = gate;
+		// A feature that moved less than rematch_distance_m keeps its match
+		// while the match passes the gate (the gate only shrinks: a search
+		// that failed fails again).
+		const float keep2 = searched ? static_cast<float>(o.rematch_distance_m *
+		                                                  o.rematch_distance_m)
+		                             : -1.f;
+		searched = true;
 		// Chunks of 32 features (~50 us of k-NN): the helper thread, woken
 		// while the caller starts, still gets its share of ~1000 features.
 		core::parallelFor(
@@ -345,18 +353,24 @@ RegistrationResult registerFeatures(
 			    if (i < np_src)
 			    {
 				    const Eigen::Vector3f x = T * src_planar[i];
-				    if ((x - plane_at[i]).squaredNorm() < keep2) return;
+				    if ((x - plane_at[i]).squaredNorm() < keep2 &&
+				        (!plane_ok[i] || plane_reach[i].gate_needed <= gate))
+					    return;
 				    plane_at[i] = x;
-				    plane_ok[i] = target.matchPlane(x, gate, o, plane_rows[i]);
+				    plane_ok[i] = target.matchPlane(x, gate, o, plane_rows[i],
+				                                    plane_reach[i]);
 			    }
 			    else
 			    {
 				    const int e = i - np_src;
 				    const Eigen::Vector3f x = T * src_edges[e];
-				    if ((x - edge_at[e]).squaredNorm() < keep2) return;
+				    if ((x - edge_at[e]).squaredNorm() < keep2 &&
+				        (!edge_ok[e] || edge_reach[e].gate_needed <= gate))
+					    return;
 				    edge_at[e] = x;
-				    edge_ok[e] = target.matchLine(x, gate, o, edge_rows[2 * e],
-				                                  edge_rows[2 * e + 1]);
+				    edge_ok[e] =
+				        target.matchLine(x, gate, o, edge_rows[2 * e],
+				                         edge_rows[2 * e + 1], edge_reach[e]);
 			    }
 		    });
 		rows.clear();

@@ -293,8 +293,8 @@ void LocalMap::refit(PlaneVoxel& v) const
 	v.planar = true;
 }
 
-bool LocalMap::coarsePlane(const Eigen::Vector3d& x, double gate,
-                           PlaneRow& out) const
+bool LocalMap::coarsePlane(const Eigen::Vector3d& x, double gate, PlaneRow& out,
+                           MatchReach& reach) const
 {
 	const double sp = o_.coarse_voxel_m;
 	if (sp <= 0) return false;
@@ -320,6 +320,7 @@ bool LocalMap::coarsePlane(const Eigen::Vector3d& x, double gate,
 			best = e;
 			out.n = v.normal;
 			out.d = -v.normal.dot(v.mean);
+			reach.gate_needed = e;
 			found = true;
 		}
 	}
@@ -587,8 +588,8 @@ LocalMap::StemCell LocalMap::fitStemAt(const Eigen::Vector3f& centre) const
 	return cell;
 }
 
-bool LocalMap::stemRow(const Eigen::Vector3f& x, double gate,
-                       PlaneRow& out) const
+bool LocalMap::stemRow(const Eigen::Vector3f& x, double gate, PlaneRow& out,
+                       MatchReach& reach) const
 {
 	// Fits are shared by the queries in one small cell until the map
 	// changes (insertions run between registrations, never during one). Two
@@ -628,11 +629,13 @@ bool LocalMap::stemRow(const Eigen::Vector3f& x, double gate,
 	const double gn = g.norm();
 	out.n = g / gn;
 	out.d = (e - g.dot(x.cast<double>())) / gn;
+	reach.gate_needed = std::max(reach.gate_needed, std::abs(e));
 	return true;
 }
 
 bool LocalMap::matchPlane(const Eigen::Vector3f& x, double gate,
-                          const RegistrationOptions& o, PlaneRow& out) const
+                          const RegistrationOptions& o, PlaneRow& out,
+                          MatchReach& reach) const
 {
 	thread_local std::vector<std::pair<float, Eigen::Vector3f>> best;
 	knn(planar_, x, o.knn, o.max_neighbourhood_m, best);
@@ -649,19 +652,24 @@ bool LocalMap::matchPlane(const Eigen::Vector3f& x, double gate,
 			// would bias the pose sideways.
 			out.n = s.vecs.col(0).normalized();
 			out.d = -out.n.dot(best.front().second.cast<double>());
+			reach.gate_needed = std::sqrt(best.front().first);
 			if (o_.stem_model && std::abs(out.n.z()) < 0.5 &&
-			    stemRow(x, gate, out))
+			    stemRow(x, gate, out, reach))
 				return true;
-			if (std::abs(out.n.dot(x.cast<double>()) + out.d) <= gate)
+			const double e = std::abs(out.n.dot(x.cast<double>()) + out.d);
+			if (e <= gate)
+			{
+				reach.gate_needed = std::max(reach.gate_needed, e);
 				return true;
+			}
 		}
 	}
-	return coarsePlane(x.cast<double>(), gate, out);
+	return coarsePlane(x.cast<double>(), gate, out, reach);
 }
 
 bool LocalMap::matchLine(const Eigen::Vector3f& x, double gate,
-                         const RegistrationOptions& o, PlaneRow& a,
-                         PlaneRow& b) const
+                         const RegistrationOptions& o, PlaneRow& a, PlaneRow& b,
+                         MatchReach& reach) const
 {
 	thread_local std::vector<std::pair<float, Eigen::Vector3f>> best;
 	knn(edges_, x, o.edge_knn, o.max_neighbourhood_m, best);
@@ -671,7 +679,8 @@ bool LocalMap::matchLine(const Eigen::Vector3f& x, double gate,
 	const Shape s = shapeOf(best);
 	if (s.ev[2] < o.line_ratio * s.ev[1]) return false;
 	const Eigen::Vector3d dir = s.vecs.col(2).normalized();
-	if (o_.stem_model && std::abs(dir.z()) > 0.8 && stemRow(x, gate, a))
+	reach.gate_needed = std::sqrt(best.front().first);
+	if (o_.stem_model && std::abs(dir.z()) > 0.8 && stemRow(x, gate, a, reach))
 	{
 		// One row: the distance to the stem's surface; the second carries
 		// nothing.

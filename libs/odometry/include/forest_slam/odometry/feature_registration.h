@@ -47,11 +47,14 @@ struct RegistrationOptions : public mrpt::config::CLoadableOptions
 	 * the accelerometer sees gravity, so roll/pitch cannot drift [deg]. 0
 	 * disables. */
 	double gravity_sigma_deg = 3.0;
-	/** A correspondence search at the same gate as the previous one keeps
-	 * a feature's match (plane or line) when the feature moved less than
-	 * this since it was searched: once the gate stops shrinking, the pose
-	 * changes by millimetres and re-searching every neighbourhood costs a
-	 * third of the k-NN time for the same matches. 0 re-searches all. */
+	/** A correspondence search keeps a feature's match (plane or line, or
+	 * no match) when the feature moved less than this since it was
+	 * searched and the match still passes the search's gate (MatchReach):
+	 * once the pose changes by millimetres, re-searching every
+	 * neighbourhood costs k-NN time for the same matches. Also across a
+	 * shrinking gate: a match found at 1 m whose neighbour and residual lie
+	 * within 0.3 m is the match a 0.3 m search would find. 0 re-searches
+	 * all. */
 	double rematch_distance_m = 0;
 	/** Converged when the update is below these. */
 	double converged_translation_m = 1e-4;
@@ -72,6 +75,16 @@ struct PlaneRow
 	double d = 0;
 };
 
+/** What a correspondence search tells besides its rows: the smallest gate
+ * the match passes (its nearest neighbour's distance, or its residual where
+ * the gate bounds that). A search at a smaller gate gives the same match
+ * while this stays within it, so registerFeatures keeps the match of a
+ * feature that barely moved when the gate shrinks. */
+struct MatchReach
+{
+	double gate_needed = 0;
+};
+
 /** What a registration matches against: scan-to-scan (FeatureTarget, k-d
  * trees over the previous scan's features) or scan-to-map (LocalMap). */
 class RegistrationTarget
@@ -79,14 +92,15 @@ class RegistrationTarget
    public:
 	virtual ~RegistrationTarget() = default;
 	/** The plane of the planar neighbourhood of x, if one lies within `gate`.
-	 */
+	 * A smaller gate never turns a failed search into a match; `reach`
+	 * says how small a gate this match passes. */
 	virtual bool matchPlane(const Eigen::Vector3f& x, double gate,
-	                        const RegistrationOptions& o,
-	                        PlaneRow& out) const = 0;
+	                        const RegistrationOptions& o, PlaneRow& out,
+	                        MatchReach& reach) const = 0;
 	/** The line of the edge neighbourhood of x, if one lies within `gate`. */
 	virtual bool matchLine(const Eigen::Vector3f& x, double gate,
 	                       const RegistrationOptions& o, PlaneRow& a,
-	                       PlaneRow& b) const = 0;
+	                       PlaneRow& b, MatchReach& reach) const = 0;
 };
 
 /** Target feature clouds with their k-d tree indices (nanoflann). */
@@ -100,10 +114,11 @@ struct FeatureTarget : public RegistrationTarget
 		planar.build(planar_pts);
 	}
 	bool matchPlane(const Eigen::Vector3f& x, double gate,
-	                const RegistrationOptions& o, PlaneRow& out) const override;
+	                const RegistrationOptions& o, PlaneRow& out,
+	                MatchReach& reach) const override;
 	bool matchLine(const Eigen::Vector3f& x, double gate,
-	               const RegistrationOptions& o, PlaneRow& a,
-	               PlaneRow& b) const override;
+	               const RegistrationOptions& o, PlaneRow& a, PlaneRow& b,
+	               MatchReach& reach) const override;
 };
 
 /** Line as two orthogonal planes through `a` (unit direction `dir`). */

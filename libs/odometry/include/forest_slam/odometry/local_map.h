@@ -97,10 +97,11 @@ class LocalMap : public RegistrationTarget
 	size_t memoryBytes() const;
 
 	bool matchPlane(const Eigen::Vector3f& x, double gate,
-	                const RegistrationOptions& o, PlaneRow& out) const override;
+	                const RegistrationOptions& o, PlaneRow& out,
+	                MatchReach& reach) const override;
 	bool matchLine(const Eigen::Vector3f& x, double gate,
-	               const RegistrationOptions& o, PlaneRow& a,
-	               PlaneRow& b) const override;
+	               const RegistrationOptions& o, PlaneRow& a, PlaneRow& b,
+	               MatchReach& reach) const override;
 
    private:
 	using Key = uint64_t;
@@ -157,8 +158,8 @@ class LocalMap : public RegistrationTarget
 	         std::vector<std::pair<float, Eigen::Vector3f>>& best) const;
 	/** The coarse plane nearest to x among its voxel and the six face
 	 * neighbours. */
-	bool coarsePlane(const Eigen::Vector3d& x, double gate,
-	                 PlaneRow& out) const;
+	bool coarsePlane(const Eigen::Vector3d& x, double gate, PlaneRow& out,
+	                 MatchReach& reach) const;
 	void refit(PlaneVoxel& v) const;
 	/** A stem section fitted to the map's points around a small cell. */
 	struct StemCell
@@ -176,7 +177,8 @@ class LocalMap : public RegistrationTarget
 	StemCell fitStemAt(const Eigen::Vector3f& centre) const;
 	/** The stem surface's tangent plane at x, if the map's points around x
 	 * fit a stem (LocalMapOptions::stem_model). */
-	bool stemRow(const Eigen::Vector3f& x, double gate, PlaneRow& out) const;
+	bool stemRow(const Eigen::Vector3f& x, double gate, PlaneRow& out,
+	             MatchReach& reach) const;
 	/** Stem fits by cell, shared by the query threads and dropped whenever
 	 * the map changes. One table for both threads, not one each: they ask
 	 * for the same cells, and fitted them twice (with the fit's normal
