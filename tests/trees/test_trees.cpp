@@ -95,6 +95,46 @@ TEST(CircleFit, PartialArc90DegreesUnbiased)
 // the silhouette points along the tangent (always outwards) and a
 // free-centre orthogonal fit shrinks the circle; the along-ray residuals are
 // exact for the true circle, so that fit stays unbiased.
+// A small circle through part of a ring (a local optimum of the robust fit:
+// the robot run's GT 1465, 50 deg and r 10.3 cm against slices at 19.8 cm
+// over 180-215 deg) is replaced by the fit started from the slices' circle;
+// a fit that agrees with the slices, or sees as much of the stem, stays.
+TEST(CircleFit, SmallCircleThroughPartOfTheRingIsCheckedAgainstTheSlices)
+{
+	std::mt19937 rng(7);
+	const Eigen::Vector2d c(0.02, -0.01);  // the band's centre, off the axis
+	const double r = 0.197;
+	const Points2D ring = arc(rng, c, r, 100, 200, 400, 0.008);
+	auto o = opts();
+	o.min_radius_m = 0.095, o.max_radius_m = 0.3;  // 0.5-1.5 x the slices'
+	// The wrong circle, as in that run: radius 10.3 cm, centred 17 cm from
+	// the stem's centre towards the middle of the seen arc.
+	const Eigen::Vector2d mid(std::cos(200 * M_PI / 180),
+	                          std::sin(200 * M_PI / 180));
+	const Circle small{c + mid * 0.172, 0.103};
+	const CircleFitResult wrong = evaluateCircle(ring, small, o);
+	ASSERT_LT(arcCoverageDeg(ring, small, 2 * o.ransac_inlier_m, o.arc_bin_deg),
+	          100);
+	const Circle slices{Eigen::Vector2d::Zero(), 0.198};
+	const auto fixed = checkAgainstReference(ring, wrong, slices, 200, o, 15);
+	EXPECT_NEAR(fixed.circle.radius_m, r, 0.005);
+	EXPECT_LT((fixed.circle.centre - c).norm(), 0.01);
+	EXPECT_GT(fixed.arc_coverage_deg, 180);
+	// The right circle stays, whatever the slices say.
+	const auto good = fitCircleRobust(ring, o);
+	ASSERT_NEAR(good.circle.radius_m, r, 0.005);
+	const Circle other{Eigen::Vector2d::Zero(), 0.12};
+	for (const auto& ref : {slices, other})
+	{
+		const auto kept = checkAgainstReference(ring, good, ref, 200, o, 15);
+		EXPECT_EQ(kept.circle.radius_m, good.circle.radius_m);
+		EXPECT_EQ(kept.circle.centre, good.circle.centre);
+	}
+	// Slices that saw no more of the stem than the fit: no second opinion.
+	const auto same = checkAgainstReference(ring, wrong, slices, 100, o, 15);
+	EXPECT_EQ(same.circle.radius_m, wrong.circle.radius_m);
+}
+
 TEST(CircleFit, AlongRayNoiseOneSidedView)
 {
 	std::mt19937 rng(3);

@@ -705,4 +705,28 @@ CircleFitResult evaluateCircle(const Points2D& p, const Circle& c,
 	return res;
 }
 
+CircleFitResult checkAgainstReference(
+    const Points2D& p, const CircleFitResult& f, const Circle& reference,
+    double reference_arc_deg, const CircleFitOptions& o, size_t min_points)
+{
+	if (!f.ok) return f;
+	// Arcs within a fixed gate: a wrong circle's residual scale is wide.
+	const double gate = 2 * o.ransac_inlier_m;
+	const double r = reference.radius_m;
+	const double arc_f = arcCoverageDeg(p, f.circle, gate, o.arc_bin_deg);
+	if (2 * arc_f >= reference_arc_deg ||
+	    std::abs(f.circle.radius_m - r) <= 0.25 * r)
+		return f;
+	Points2D near;
+	for (const auto& q : p)
+		if (std::abs((q - reference.centre).norm() - r) <= 2 * gate)
+			near.push_back(q);
+	Circle c = reference;
+	if (near.size() < min_points || !refineCircleGeometric(near, c) ||
+	    c.radius_m < o.min_radius_m || c.radius_m > o.max_radius_m ||
+	    arcCoverageDeg(p, c, gate, o.arc_bin_deg) < arc_f)
+		return f;
+	return evaluateCircle(near, c, o);
+}
+
 }  // namespace forest_slam::trees

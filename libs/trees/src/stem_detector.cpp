@@ -90,6 +90,13 @@ struct Chain
 		std::nth_element(r.begin(), r.begin() + r.size() / 2, r.end());
 		return r[r.size() / 2];
 	}
+	double medianArcDeg() const
+	{
+		std::vector<double> a;
+		for (const auto& q : s) a.push_back(q.arc_deg);
+		std::nth_element(a.begin(), a.begin() + a.size() / 2, a.end());
+		return a[a.size() / 2];
+	}
 };
 }  // namespace
 
@@ -771,6 +778,14 @@ std::vector<DetectedTree> detectTrees(
 				st.solid_rings++;
 			}
 		}
+		// A circle seeing far less of the stem than its slices, with another
+		// radius, is a small circle through part of the ring (a local
+		// optimum; the robot run's GT 1465: 50 deg and r 10.3 cm where six
+		// slices saw 180-215 deg at 18.4-19.8 cm, GT 19.7 cm).
+		f = checkAgainstReference(
+		    band, f,
+		    Circle{Eigen::Vector2d::Zero(), c.radiusAt(o.dbh_height_m)},
+		    c.medianArcDeg(), fo, size_t(o.min_dbh_points));
 		// A small stem's radius from the lateral spread of its rays too
 		// (silhouetteRadius; TreeOptions::dbh_silhouette_max_m): the mean of
 		// both, fading out towards the larger stems, where a voxel merges

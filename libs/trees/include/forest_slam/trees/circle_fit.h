@@ -69,6 +69,19 @@ CircleFitResult fitCircleRobust(const Points2D& p, const CircleFitOptions& o);
 CircleFitResult evaluateCircle(const Points2D& p, const Circle& c,
                                const CircleFitOptions& o);
 
+/** The fit f of points p checked against a reference circle seen over
+ * `reference_arc_deg` (a stem's slices above and below): if f sees less
+ * than half that arc (points within 2 ransac_inlier_m) and its radius is
+ * more than a quarter off the reference's, f is taken for a small circle
+ * through part of the ring (a local optimum of the robust fit) and the fit
+ * starts again from the reference, on the points within 4 ransac_inlier_m
+ * of it. Returns the new circle if it sees at least as much of p (a band
+ * of a few points, where both see the same short arc, is better read by
+ * the slices); else f (also when the new fit fails, leaves the radius
+ * range or has fewer than min_points points). */
+CircleFitResult checkAgainstReference(
+    const Points2D& p, const CircleFitResult& f, const Circle& reference,
+    double reference_arc_deg, const CircleFitOptions& o, size_t min_points);
 /** Geometric fit for range noise along the rays (lidar): the residual of
  * point p_i seen along the unit direction d_i (sensor → point, in the plane
  * of the circle) is the signed distance t_i along the ray from the circle's
