@@ -83,19 +83,14 @@ struct Chain
 	}
 	Eigen::Vector2d at(double h) const { return {ax + bx * h, ay + by * h}; }
 	double radiusAt(double h) const { return ar + br * h; }
-	double medianRadius() const
+	double medianRadius() const { return median(&StemSection::radius_m); }
+	double medianArcDeg() const { return median(&StemSection::arc_deg); }
+	double median(double StemSection::*field) const
 	{
-		std::vector<double> r;
-		for (const auto& q : s) r.push_back(q.radius_m);
-		std::nth_element(r.begin(), r.begin() + r.size() / 2, r.end());
-		return r[r.size() / 2];
-	}
-	double medianArcDeg() const
-	{
-		std::vector<double> a;
-		for (const auto& q : s) a.push_back(q.arc_deg);
-		std::nth_element(a.begin(), a.begin() + a.size() / 2, a.end());
-		return a[a.size() / 2];
+		std::vector<double> v;
+		for (const auto& q : s) v.push_back(q.*field);
+		std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+		return v[v.size() / 2];
 	}
 };
 }  // namespace
