@@ -1,6 +1,7 @@
 #include <forest_slam/eval/tree_metrics.h>
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -181,6 +182,50 @@ TEST(EvaluateTrees, WithoutRangeAndThresholds)
 	EXPECT_EQ(evaluateTrees(gt, est, o).tp, 4u);
 	o.max_match_m = 0.05;  // only exact-ish positions match: none here
 	EXPECT_EQ(evaluateTrees(gt, est, o).tp, 0u);
+}
+
+TEST(PositionErrorStructure, SeparatesOffsetScaleAndNoise)
+{
+	// A map 0.07 % short about its origin, turned by 0.01 deg, shifted by
+	// (2, -1) cm, with 1 cm of noise per axis on each tree.
+	std::mt19937 rng(7);
+	std::uniform_real_distribution<double> u(-80, 80);
+	std::normal_distribution<double> noise(0, 0.01);
+	const double s = 1 - 7e-4, a = 0.01 * M_PI / 180;
+	const Eigen::Matrix2d R = Eigen::Rotation2Dd(a).toRotationMatrix();
+	std::vector<Eigen::Vector2d> gt, est, est_exact;
+	for (int i = 0; i < 400; i++)
+	{
+		const Eigen::Vector2d g(u(rng), u(rng));
+		const Eigen::Vector2d e = s * R * g + Eigen::Vector2d(0.02, -0.01);
+		gt.push_back(g);
+		est_exact.push_back(e);
+		est.push_back(e + Eigen::Vector2d(noise(rng), noise(rng)));
+	}
+	const auto exact = positionErrorStructure(gt, est_exact);
+	EXPECT_NEAR(exact.scale, s, 1e-9);
+	EXPECT_NEAR(exact.rotation_deg, 0.01, 1e-7);
+	EXPECT_NEAR(exact.rmse_after_similarity_m, 0, 1e-9);
+	// The mean offset is the shift plus the scale's mean displacement.
+	double mx = 0, my = 0;
+	for (size_t i = 0; i < gt.size(); i++)
+		mx += est_exact[i].x() - gt[i].x(), my += est_exact[i].y() - gt[i].y();
+	EXPECT_NEAR(exact.offset_x_m, mx / gt.size(), 1e-12);
+	EXPECT_NEAR(exact.offset_y_m, my / gt.size(), 1e-12);
+
+	const auto noisy = positionErrorStructure(gt, est);
+	EXPECT_EQ(noisy.count, 400u);
+	EXPECT_NEAR(noisy.scale, s, 1e-4);
+	// What is left is the noise: sqrt(2) cm.
+	EXPECT_NEAR(noisy.rmse_after_similarity_m, std::sqrt(2.0) * 0.01, 0.001);
+	// The scale alone spreads the trees by up to 8 cm: an offset does not
+	// take it away.
+	EXPECT_GT(noisy.rmse_after_offset_m, 0.03);
+
+	// Too few pairs: no fit; unequal lists: an error.
+	EXPECT_TRUE(std::isnan(
+	    positionErrorStructure({gt[0], gt[1]}, {est[0], est[1]}).scale));
+	EXPECT_THROW(positionErrorStructure(gt, {est[0]}), std::invalid_argument);
 }
 
 TEST(TrajectoryCorridor, MatchesBruteForce)

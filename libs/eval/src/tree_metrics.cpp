@@ -1,6 +1,7 @@
 #include <forest_slam/eval/csv_table.h>
 #include <forest_slam/eval/tree_metrics.h>
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -253,6 +254,45 @@ void detectionScores(size_t tp, size_t fn, size_t fp, double& recall,
 	         : (tp + fn && tp + fp ? 0.0 : kNaN);
 }
 
+PositionErrorStructure positionErrorStructure(
+    const std::vector<Eigen::Vector2d>& gt,
+    const std::vector<Eigen::Vector2d>& est)
+{
+	if (gt.size() != est.size())
+		throw std::invalid_argument(
+		    "positionErrorStructure: as many estimates as GT positions");
+	PositionErrorStructure out;
+	const size_t n = gt.size();
+	out.count = n;
+	if (n < 3) return out;
+	Eigen::Matrix2Xd G(2, n), E(2, n);
+	for (size_t i = 0; i < n; i++) G.col(i) = gt[i], E.col(i) = est[i];
+	const Eigen::Vector2d offset = (E - G).rowwise().mean();
+	out.offset_x_m = offset.x();
+	out.offset_y_m = offset.y();
+	auto rmse = [&](const Eigen::Matrix2Xd& fitted)
+	{ return std::sqrt((E - fitted).colwise().squaredNorm().mean()); };
+	out.rmse_after_offset_m = rmse(G.colwise() + offset);
+	// The 2D similarity in closed form (Umeyama in the plane): about the
+	// centroids, the rotation from the summed dot and cross products, the
+	// scale from their norm over the GT's spread.
+	const Eigen::Vector2d cg = G.rowwise().mean(), ce = E.rowwise().mean();
+	const Eigen::Matrix2Xd g = G.colwise() - cg, e = E.colwise() - ce;
+	const double dot = (g.array() * e.array()).sum();
+	const double cross = (g.row(0).array() * e.row(1).array() -
+	                      g.row(1).array() * e.row(0).array())
+	                         .sum();
+	const double spread = g.squaredNorm();
+	if (!(spread > 0)) return out;
+	const double angle = std::atan2(cross, dot);
+	out.scale = std::hypot(dot, cross) / spread;
+	out.rotation_deg = angle * 180.0 / M_PI;
+	const Eigen::Matrix2d sR =
+	    out.scale * Eigen::Rotation2Dd(angle).toRotationMatrix();
+	out.rmse_after_similarity_m = rmse((sR * g).colwise() + ce);
+	return out;
+}
+
 TreeEvaluation evaluateTrees(const std::vector<TreeRecord>& gt,
                              const std::vector<TreeRecord>& est,
                              const TreeEvalOptions& opts,
@@ -336,6 +376,7 @@ TreeEvaluation evaluateTrees(const std::vector<TreeRecord>& gt,
 	detectionScores(ev.tp, ev.fn, ev.fp, ev.recall, ev.precision, ev.f1);
 
 	std::vector<double> pos, x, y;
+	std::vector<Eigen::Vector2d> gt_xy, est_xy;
 	for (const auto& m : ev.matches)
 	{
 		if (ev.gt_status[m.a] != GtTreeStatus::Evaluated) continue;
@@ -343,8 +384,11 @@ TreeEvaluation evaluateTrees(const std::vector<TreeRecord>& gt,
 		pos.push_back(m.dist_m);
 		x.push_back(est[m.b].dbh_m);
 		y.push_back(gt[m.a].dbh_m);
+		gt_xy.emplace_back(gt[m.a].x, gt[m.a].y);
+		est_xy.emplace_back(est[m.b].x, est[m.b].y);
 	}
 	ev.position_err_m = summarize(pos);
+	ev.position_structure = positionErrorStructure(gt_xy, est_xy);
 	ev.dbh = dbhErrors(x, y);
 
 	for (const auto& region : regions)

@@ -93,6 +93,15 @@ void printTreeReport(std::ostream& os, const TreeEvalInputs& in,
 	   << cell(ev.position_err_m.rmse, 0, 3) << " m, mean "
 	   << cell(ev.position_err_m.mean, 0, 3) << " m, max "
 	   << cell(ev.position_err_m.max, 0, 3) << " m\n";
+	const auto& ps = ev.position_structure;
+	if (ps.count >= 3)
+		os << "  systematic part: mean offset (" << cell(ps.offset_x_m, 0, 3)
+		   << ", " << cell(ps.offset_y_m, 0, 3) << ") m, RMSE without it "
+		   << cell(ps.rmse_after_offset_m, 0, 3)
+		   << " m; a 2D similarity (map scale "
+		   << cell((ps.scale - 1) * 100, 0, 3) << " %, rotation "
+		   << cell(ps.rotation_deg, 0, 3) << " deg) leaves "
+		   << cell(ps.rmse_after_similarity_m, 0, 3) << " m\n";
 	os << "DBH (TPs): RMSE " << cell(100 * ev.dbh.rmse_m, 0, 2) << " cm, MAE "
 	   << cell(100 * ev.dbh.mae_m, 0, 2) << " cm, MAPE "
 	   << cell(ev.dbh.mape_pct, 0, 2) << " %, bias "
@@ -172,6 +181,15 @@ void writeTreeJson(std::ostream& os, const TreeEvalInputs& in,
 	    .kv("rmse", ev.position_err_m.rmse)
 	    .kv("mean", ev.position_err_m.mean)
 	    .kv("max", ev.position_err_m.max);
+	const auto& ps = ev.position_structure;
+	j.key("structure").beginObject();
+	j.kv("offset_x_m", ps.offset_x_m)
+	    .kv("offset_y_m", ps.offset_y_m)
+	    .kv("rmse_after_offset_m", ps.rmse_after_offset_m)
+	    .kv("scale", ps.scale)
+	    .kv("rotation_deg", ps.rotation_deg)
+	    .kv("rmse_after_similarity_m", ps.rmse_after_similarity_m);
+	j.endObject();
 	j.endObject();
 	j.key("dbh");
 	writeDbhErrors(j, ev.dbh);

@@ -6,6 +6,8 @@
 #include <forest_slam/eval/hungarian.h>
 #include <forest_slam/eval/stats.h>
 
+#include <Eigen/Core>
+
 #include <string>
 #include <vector>
 
@@ -127,6 +129,27 @@ struct RegionTreeStats
 	DbhErrors dbh;  ///< over the region's true positives
 };
 
+/** How much of the position error is systematic (over the true positives,
+ * horizontal): a common offset, or a 2D similarity of the whole map (its
+ * scale and rotation about the trees' centroid, as a trajectory's drift or
+ * a scale bias of the odometry make). The target figures stay the raw
+ * distances; this says what the raw RMSE is made of. */
+struct PositionErrorStructure
+{
+	size_t count = 0;  ///< true positives used (fitted from 3 on)
+	double offset_x_m = kNaN, offset_y_m = kNaN;  ///< mean est - GT
+	double rmse_after_offset_m = kNaN;
+	/** est ~= scale * R(rotation) * gt + t, least squares (Umeyama). */
+	double scale = kNaN, rotation_deg = kNaN;
+	double rmse_after_similarity_m = kNaN;
+};
+
+/** Fits the structure to matched positions (gt[i] <-> est[i]); NaNs below
+ * three pairs. */
+PositionErrorStructure positionErrorStructure(
+    const std::vector<Eigen::Vector2d>& gt,
+    const std::vector<Eigen::Vector2d>& est);
+
 struct TreeEvaluation
 {
 	std::vector<GtTreeStatus> gt_status;
@@ -141,6 +164,7 @@ struct TreeEvaluation
 	       est_out_of_range = 0;
 	double recall = kNaN, precision = kNaN, f1 = kNaN;
 	SummaryStats position_err_m;  ///< horizontal distance over TPs
+	PositionErrorStructure position_structure;
 	DbhErrors dbh;
 	std::vector<RegionTreeStats> regions;
 };
