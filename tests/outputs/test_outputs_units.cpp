@@ -338,6 +338,58 @@ TEST(Octomap, StemsOccupiedSpaceBetweenThemFreeReadByOctomap)
 	EXPECT_EQ(colour->getTreeType(), "ColorOcTree");
 }
 
+// The flat-table caster finds octomap's own keys: the same file.
+TEST(Octomap, DiscreteCasterFindsOctomapsKeys)
+{
+	std::mt19937 rng(11);
+	std::uniform_real_distribution<float> u(-30.f, 30.f), z(-3.f, 8.f);
+	outputs::DiscreteRayCaster caster(0.2);
+	octomap::OcTree ref(0.2);
+	for (int trial = 0; trial < 3; trial++)
+	{
+		// Points in both signs of every axis, some beyond the max range,
+		// several in one voxel (one ray per voxel).
+		octomap::Pointcloud cloud;
+		for (int i = 0; i < 3000; i++)
+		{
+			const octomap::point3d p(u(rng), u(rng), z(rng));
+			cloud.push_back(p);
+			if (i % 10 == 0) cloud.push_back(p + octomap::point3d(0.01f, 0, 0));
+		}
+		const octomap::point3d origin(0.37f * trial, -1.1f, 1.5f);
+		const double max_range = trial == 2 ? -1.0 : 25.0;  // -1: none
+		octomap::KeySet ref_free, ref_occ;
+		ref.computeDiscreteUpdate(cloud, origin, ref_free, ref_occ, max_range);
+		std::vector<octomap::OcTreeKey> free, occ;
+		caster.cast(cloud, origin, max_range, free, occ);
+		ASSERT_EQ(free.size(), ref_free.size()) << "trial " << trial;
+		ASSERT_EQ(occ.size(), ref_occ.size()) << "trial " << trial;
+		for (const auto& k : free) EXPECT_TRUE(ref_free.count(k));
+		for (const auto& k : occ) EXPECT_TRUE(ref_occ.count(k));
+		// Tree order: depth first, i.e. lexicographic in the key bits from
+		// the top level down.
+		auto before =
+		    [](const octomap::OcTreeKey& a, const octomap::OcTreeKey& b)
+		{
+			for (int bit = 15; bit >= 0; bit--)
+				for (int ax = 0; ax < 3; ax++)
+				{
+					const int x = (a[ax] >> bit) & 1, y = (b[ax] >> bit) & 1;
+					if (x != y) return x < y;
+				}
+			return false;
+		};
+		for (size_t i = 1; i < free.size(); i++)
+		{
+			ASSERT_TRUE(before(free[i - 1], free[i])) << i;
+		}
+		if (trial == 2)
+		{
+			EXPECT_FALSE(occ.empty());  // no max range: every end occupied
+		}
+	}
+}
+
 // Stops and revisits: a keyframe within octomap_keyframe_spacing_m of one
 // already cast adds nothing new to the occupancy and is skipped.
 TEST(Octomap, KeyframesAtPlacesAlreadyCastAreSkipped)

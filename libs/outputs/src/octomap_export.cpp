@@ -1,4 +1,5 @@
 #include <forest_slam/core/atomic_file.h>
+#include <forest_slam/core/flat_hash_map.h>
 #include <forest_slam/outputs/octomap_export.h>
 
 #include <octomap/ColorOcTree.h>
@@ -112,32 +113,115 @@ std::vector<size_t> spacedKeyframes(const Keyframes& keyframes,
 	return keep;
 }
 
-/** The keys in depth-first order of the tree (Morton order of the key
- * bits, most significant first). Updating a keyframe's few hundred
- * thousand free keys in hash order descended the 16 levels of a tree of
- * millions of leaves at random: most of the export. Each key's log-odds
- * does not depend on the order of the other keys. */
-std::vector<octomap::OcTreeKey> inTreeOrder(const octomap::KeySet& keys)
+/** A key's Morton code, the bits of k[0], k[1], k[2] interleaved from the
+ * most significant down: the depth-first order of the tree. Updating a
+ * keyframe's few hundred thousand free keys in hash order descended the 16
+ * levels of a tree of millions of leaves at random: most of the export.
+ * Each key's log-odds does not depend on the order of the other keys. */
+inline uint64_t spreadBits(uint64_t x)
 {
-	auto morton = [](const octomap::OcTreeKey& k)
-	{
-		uint64_t m = 0;
-		for (int b = 15; b >= 0; b--)
-			m = (m << 3) | (uint64_t((k[0] >> b) & 1) << 2) |
-			    (uint64_t((k[1] >> b) & 1) << 1) | uint64_t((k[2] >> b) & 1);
-		return m;
-	};
-	std::vector<std::pair<uint64_t, octomap::OcTreeKey>> coded;
-	coded.reserve(keys.size());
-	for (const auto& k : keys) coded.emplace_back(morton(k), k);
-	std::sort(coded.begin(), coded.end(),
-	          [](const auto& a, const auto& b) { return a.first < b.first; });
-	std::vector<octomap::OcTreeKey> out;
-	out.reserve(coded.size());
-	for (const auto& c : coded) out.push_back(c.second);
-	return out;
+	// Bit b of a 16-bit value to bit 3b.
+	x &= 0xffff;
+	x = (x | x << 16) & 0x0000ff0000ffull;
+	x = (x | x << 8) & 0x00f00f00f00full;
+	x = (x | x << 4) & 0x0c30c30c30c3ull;
+	x = (x | x << 2) & 0x249249249249ull;
+	return x;
+}
+inline uint64_t compactBits(uint64_t x)
+{
+	x &= 0x249249249249ull;
+	x = (x | x >> 2) & 0x0c30c30c30c3ull;
+	x = (x | x >> 4) & 0x00f00f00f00full;
+	x = (x | x >> 8) & 0x0000ff0000ffull;
+	x = (x | x >> 16) & 0xffff;
+	return x;
+}
+inline uint64_t morton(const octomap::OcTreeKey& k)
+{
+	return spreadBits(k[0]) << 2 | spreadBits(k[1]) << 1 | spreadBits(k[2]);
+}
+inline octomap::OcTreeKey fromMorton(uint64_t m)
+{
+	return octomap::OcTreeKey(
+	    static_cast<octomap::key_type>(compactBits(m >> 2)),
+	    static_cast<octomap::key_type>(compactBits(m >> 1)),
+	    static_cast<octomap::key_type>(compactBits(m)));
 }
 }  // namespace
+
+struct DiscreteRayCaster::Impl
+{
+	explicit Impl(double resolution_m) : keys(resolution_m) {}
+	octomap::OcTree keys;  ///< for its key arithmetic only (stays empty)
+	octomap::KeyRay ray;
+	core::FlatHashMap<uint8_t> ends;   ///< end voxels seen (Morton codes)
+	core::FlatHashMap<uint8_t> cells;  ///< Morton code -> 1 occupied, 0 free
+	octomap::Pointcloud discrete;
+	std::vector<uint64_t> free_codes, occupied_codes;
+};
+
+DiscreteRayCaster::DiscreteRayCaster(double resolution_m)
+    : impl_(std::make_unique<Impl>(resolution_m))
+{
+}
+DiscreteRayCaster::~DiscreteRayCaster() = default;
+
+void DiscreteRayCaster::cast(const octomap::Pointcloud& cloud,
+                             const octomap::point3d& origin, double max_range_m,
+                             std::vector<octomap::OcTreeKey>& free,
+                             std::vector<octomap::OcTreeKey>& occupied)
+{
+	Impl& m = *impl_;
+	m.ends.clearKeepingCapacity();
+	m.cells.clearKeepingCapacity();
+	m.discrete.clear();
+	// computeDiscreteUpdate: one end point per voxel, its centre, in the
+	// order the voxels first appear.
+	for (size_t i = 0; i < cloud.size(); i++)
+	{
+		const octomap::OcTreeKey k = m.keys.coordToKey(cloud[i]);
+		bool added = false;
+		m.ends.tryEmplace(morton(k), &added);
+		if (added) m.discrete.push_back(m.keys.keyToCoord(k));
+	}
+	// computeUpdate without a bounding box, the same float arithmetic.
+	auto markFree = [&]()
+	{
+		for (const auto& k : m.ray) m.cells.tryEmplace(morton(k));  // 0 if new
+	};
+	for (size_t i = 0; i < m.discrete.size(); i++)
+	{
+		const octomap::point3d& p = m.discrete[i];
+		if (max_range_m < 0.0 || (p - origin).norm() <= max_range_m)
+		{
+			if (m.keys.computeRayKeys(origin, p, m.ray)) markFree();
+			octomap::OcTreeKey key;
+			if (m.keys.coordToKeyChecked(p, key))
+				m.cells.tryEmplace(morton(key)) = 1;
+		}
+		else
+		{
+			const octomap::point3d direction = (p - origin).normalized();
+			const octomap::point3d new_end =
+			    origin + direction * static_cast<float>(max_range_m);
+			if (m.keys.computeRayKeys(origin, new_end, m.ray)) markFree();
+		}
+	}
+	m.free_codes.clear();
+	m.occupied_codes.clear();
+	m.cells.forEach(
+	    [&](uint64_t code, uint8_t occ)
+	    { (occ ? m.occupied_codes : m.free_codes).push_back(code); });
+	for (auto [codes, out] :
+	     {std::pair{&m.free_codes, &free}, {&m.occupied_codes, &occupied}})
+	{
+		std::sort(codes->begin(), codes->end());
+		out->clear();
+		out->reserve(codes->size());
+		for (uint64_t c : *codes) out->push_back(fromMorton(c));
+	}
+}
 
 OctomapSummary writeOctomap(const Keyframes& keyframes,
                             const KeyframeCloudLoader& cloud_of,
@@ -154,21 +238,21 @@ OctomapSummary writeOctomap(const Keyframes& keyframes,
 	octomap::OcTree tree(resolution_m);
 	// Ray casting (the keys a keyframe's rays cross) runs for the next two
 	// keyframes on two threads while keyframe i's keys update the tree, in
-	// tree order (inTreeOrder: the updates, not the casting, were most of
-	// the handheld run's 34.7 s; 18.9 s with both). Each casting uses a
-	// scratch tree of the same resolution (same keys; an OcTree's ray
-	// buffers are its own), and the updates are insertPointCloud's
-	// (discretize, lazy_eval) in keyframe order: the same file.
+	// tree order (Morton order: the updates, not the casting, were most of
+	// the handheld run's 34.7 s; 18.9 s with both). Each casting has its own
+	// DiscreteRayCaster (the keys computeDiscreteUpdate finds, in flat
+	// tables), and the updates are insertPointCloud's (discretize,
+	// lazy_eval) in keyframe order: the same file.
 	struct Rays
 	{
 		std::vector<octomap::OcTreeKey> free, occupied;  ///< in tree order
 		size_t points = 0;
 	};
 	constexpr size_t kCasters = 2;
-	std::vector<std::unique_ptr<octomap::OcTree>> casters;
+	std::vector<std::unique_ptr<DiscreteRayCaster>> casters;
 	for (size_t c = 0; c < kCasters; c++)
-		casters.push_back(std::make_unique<octomap::OcTree>(resolution_m));
-	auto cast = [&](size_t i, octomap::OcTree& caster)
+		casters.push_back(std::make_unique<DiscreteRayCaster>(resolution_m));
+	auto cast = [&](size_t i, DiscreteRayCaster& caster)
 	{
 		const auto& kf = keyframes[i];
 		const std::vector<Eigen::Vector3f> pts = cloud_of(i);
@@ -185,12 +269,8 @@ OctomapSummary writeOctomap(const Keyframes& keyframes,
 		r.points = pts.size();
 		// discretize: one ray per end voxel (several points in one voxel
 		// would cast the same ray).
-		octomap::KeySet free, occupied;
-		caster.computeDiscreteUpdate(cloud,
-		                             octomap::point3d(o.x(), o.y(), o.z()),
-		                             free, occupied, max_range_m);
-		r.free = inTreeOrder(free);
-		r.occupied = inTreeOrder(occupied);
+		caster.cast(cloud, octomap::point3d(o.x(), o.y(), o.z()), max_range_m,
+		            r.free, r.occupied);
 		return r;
 	};
 	// Keyframe j is cast on casters[j % kCasters]; its future is

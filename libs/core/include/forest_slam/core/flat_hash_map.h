@@ -59,6 +59,13 @@ class FlatHashMap
 		std::vector<Slot>().swap(slots_);
 		size_ = 0;
 	}
+	/** Empties the table but keeps its slots: refilling it to the same size
+	 * neither allocates nor faults pages in again. */
+	void clearKeepingCapacity()
+	{
+		for (Slot& s : slots_) s = Slot{};
+		size_ = 0;
+	}
 	/** Table bytes (values' own heap memory not included). */
 	size_t memoryBytes() const { return vectorBytes(slots_); }
 

@@ -4,7 +4,17 @@
 // at its end), in the map frame.
 #include <forest_slam/outputs/run_collector.h>
 
+#include <octomap/OcTreeKey.h>
+#include <octomap/Pointcloud.h>
+
+#include <memory>
 #include <string>
+#include <vector>
+
+namespace octomap
+{
+class OcTree;
+}
 
 namespace forest_slam::outputs
 {
@@ -14,6 +24,28 @@ struct OctomapSummary
 	size_t keyframes_skipped = 0;  ///< within keyframe_spacing_m of a cast one
 	size_t occupied_leaves = 0, free_leaves = 0;
 	double seconds = 0;
+};
+
+/** The voxels one cloud's rays cross (free) and end in (occupied), exactly
+ * as octomap's OccupancyOcTreeBase::computeDiscreteUpdate finds them (end
+ * points merged per voxel, rays cast to the voxel centres, beams longer than
+ * max_range_m free up to it only, a voxel both free and occupied is
+ * occupied), each list in tree order (Morton order of the keys, most
+ * significant bit first). octomap collects them in std::unordered_sets, a
+ * heap node per key: most of the export's time went there. Reusable: keeps
+ * its tables between clouds. */
+class DiscreteRayCaster
+{
+   public:
+	explicit DiscreteRayCaster(double resolution_m);
+	~DiscreteRayCaster();
+	void cast(const octomap::Pointcloud& cloud, const octomap::point3d& origin,
+	          double max_range_m, std::vector<octomap::OcTreeKey>& free,
+	          std::vector<octomap::OcTreeKey>& occupied);
+
+   private:
+	struct Impl;
+	std::unique_ptr<Impl> impl_;
 };
 
 /** Casts every keyframe point (up to max_range_m; farther beams mark free
