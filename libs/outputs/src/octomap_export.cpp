@@ -155,13 +155,14 @@ struct DiscreteRayCaster::Impl
 	explicit Impl(double resolution_m) : keys(resolution_m) {}
 	octomap::OcTree keys;  ///< for its key arithmetic only (stays empty)
 	octomap::KeyRay ray;
-	core::FlatHashMap<uint8_t> ends;   ///< end voxels seen (Morton codes)
-	core::FlatHashMap<uint8_t> cells;  ///< Morton code -> 1 occupied, 0 free
+	core::FlatHashMap<uint8_t> ends;  ///< end voxels seen (Morton codes)
 	octomap::Pointcloud discrete;
+	/** Codes as the rays cross them, repeats included, then sorted and made
+	 * unique: appending is sequential where a hash set probed a big table
+	 * at random for every ray step (a cache miss each). */
 	std::vector<uint64_t> free_codes, occupied_codes, sort_buffer;
-	/** The codes marked last, by a hash of the code: the voxels near the
-	 * sensor, which most rays cross, are found here without probing the
-	 * big table (a cache miss each). */
+	/** The codes appended last, by a hash of the code: the voxels near the
+	 * sensor, which most rays cross, are appended once, not per ray. */
 	static constexpr size_t kRecent = 4096;
 	std::vector<uint64_t> recent = std::vector<uint64_t>(kRecent, ~0ull);
 };
@@ -197,7 +198,8 @@ void DiscreteRayCaster::cast(const octomap::Pointcloud& cloud,
 {
 	Impl& m = *impl_;
 	m.ends.clearKeepingCapacity();
-	m.cells.clearKeepingCapacity();
+	m.free_codes.clear();
+	m.occupied_codes.clear();
 	std::fill(m.recent.begin(), m.recent.end(), ~0ull);
 	m.discrete.clear();
 	// computeDiscreteUpdate: one end point per voxel, its centre, in the
@@ -218,7 +220,7 @@ void DiscreteRayCaster::cast(const octomap::Pointcloud& cloud,
 			uint64_t& seen = m.recent[(code * 0x9e3779b97f4a7c15ull) >> 52];
 			if (seen == code) continue;
 			seen = code;
-			m.cells.tryEmplace(code);  // 0 if new
+			m.free_codes.push_back(code);
 		}
 	};
 	for (size_t i = 0; i < m.discrete.size(); i++)
@@ -229,7 +231,7 @@ void DiscreteRayCaster::cast(const octomap::Pointcloud& cloud,
 			if (m.keys.computeRayKeys(origin, p, m.ray)) markFree();
 			octomap::OcTreeKey key;
 			if (m.keys.coordToKeyChecked(p, key))
-				m.cells.tryEmplace(morton(key)) = 1;
+				m.occupied_codes.push_back(morton(key));
 		}
 		else
 		{
@@ -239,19 +241,24 @@ void DiscreteRayCaster::cast(const octomap::Pointcloud& cloud,
 			if (m.keys.computeRayKeys(origin, new_end, m.ray)) markFree();
 		}
 	}
-	m.free_codes.clear();
-	m.occupied_codes.clear();
-	m.cells.forEach(
-	    [&](uint64_t code, uint8_t occ)
-	    { (occ ? m.occupied_codes : m.free_codes).push_back(code); });
-	for (auto [codes, out] :
-	     {std::pair{&m.free_codes, &free}, {&m.occupied_codes, &occupied}})
+	// Sets in tree order; a voxel both free and occupied is occupied.
+	for (auto* codes : {&m.free_codes, &m.occupied_codes})
 	{
 		radixSort48(*codes, m.sort_buffer);
-		out->clear();
-		out->reserve(codes->size());
-		for (uint64_t c : *codes) out->push_back(fromMorton(c));
+		codes->erase(std::unique(codes->begin(), codes->end()), codes->end());
 	}
+	free.clear();
+	occupied.clear();
+	free.reserve(m.free_codes.size());
+	occupied.reserve(m.occupied_codes.size());
+	auto occ = m.occupied_codes.begin();
+	for (uint64_t c : m.free_codes)
+	{
+		while (occ != m.occupied_codes.end() && *occ < c) ++occ;
+		if (occ == m.occupied_codes.end() || *occ != c)
+			free.push_back(fromMorton(c));
+	}
+	for (uint64_t c : m.occupied_codes) occupied.push_back(fromMorton(c));
 }
 
 OctomapSummary writeOctomap(const Keyframes& keyframes,
