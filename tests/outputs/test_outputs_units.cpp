@@ -390,6 +390,43 @@ TEST(Octomap, DiscreteCasterFindsOctomapsKeys)
 	}
 }
 
+// The whole export (flat-table casting, updates along the kept tree path)
+// writes the file octomap's own insertPointCloud (discretize, lazy
+// evaluation) gives, beams beyond the max range included.
+TEST(Octomap, WrittenFileIsOctomapsOwn)
+{
+	const auto dir = tempDir("octomap_same");
+	const auto kfs = sceneKeyframes(Scene{});
+	const auto bt = (dir / "map.bt").string();
+	outputs::writeOctomap(kfs, 0.1, 12, bt);
+
+	octomap::OcTree ref(0.1);
+	for (const auto& kf : kfs)
+	{
+		octomap::Pointcloud cloud;
+		const Eigen::Isometry3f T = kf.sensor_pose.cast<float>();
+		for (const auto& p : kf.points)
+		{
+			const Eigen::Vector3f q = T * p;
+			cloud.push_back(q.x(), q.y(), q.z());
+		}
+		const auto& o = kf.sensor_pose.translation();
+		ref.insertPointCloud(cloud, octomap::point3d(o.x(), o.y(), o.z()), 12,
+		                     true, true);
+	}
+	ref.updateInnerOccupancy();
+	const auto ref_bt = (dir / "ref.bt").string();
+	ASSERT_TRUE(ref.writeBinary(ref_bt));
+	auto bytes = [](const std::string& path)
+	{
+		std::ifstream f(path, std::ios::binary);
+		return std::string(std::istreambuf_iterator<char>(f), {});
+	};
+	const std::string ours = bytes(bt), theirs = bytes(ref_bt);
+	EXPECT_GT(ours.size(), 10000u);
+	EXPECT_TRUE(ours == theirs) << ours.size() << " vs " << theirs.size();
+}
+
 // Stops and revisits: a keyframe within octomap_keyframe_spacing_m of one
 // already cast adds nothing new to the occupancy and is skipped.
 TEST(Octomap, KeyframesAtPlacesAlreadyCastAreSkipped)

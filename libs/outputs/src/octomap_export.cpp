@@ -150,6 +150,51 @@ inline octomap::OcTreeKey fromMorton(uint64_t m)
 }
 }  // namespace
 
+namespace
+{
+/** tree.updateNode(k, occupied, lazy_eval = true) for every key, in tree
+ * order: the path of the previous key is kept and only the levels below
+ * the first child index that differs are descended (16 levels from the
+ * root per key was most of the updates' time). Same nodes, same log-odds:
+ * with lazy evaluation nothing is pruned, so no node has to be expanded,
+ * and updateNodeLogOdds clamps as updateNode's early exit skips. */
+void updateInTreeOrder(octomap::OcTree& tree,
+                       const std::vector<octomap::OcTreeKey>& keys,
+                       bool occupied)
+{
+	if (keys.empty()) return;
+	size_t first = 0;
+	if (!tree.getRoot()) tree.updateNode(keys[first++], occupied, true);
+	const float update =
+	    occupied ? tree.getProbHitLog() : tree.getProbMissLog();
+	const unsigned depth = tree.getTreeDepth();
+	std::vector<octomap::OcTreeNode*> path(depth + 1, nullptr);
+	path[0] = tree.getRoot();
+	unsigned valid = 0;  // path[0..valid] lie on the previous key's path
+	const octomap::OcTreeKey* prev = nullptr;
+	for (size_t i = first; i < keys.size(); i++)
+	{
+		const octomap::OcTreeKey& k = keys[i];
+		unsigned d = 0;
+		if (prev)
+			while (d < valid &&
+			       octomap::computeChildIdx(k, depth - 1 - d) ==
+			           octomap::computeChildIdx(*prev, depth - 1 - d))
+				d++;
+		for (; d < depth; d++)
+		{
+			const unsigned pos = octomap::computeChildIdx(k, depth - 1 - d);
+			path[d + 1] = tree.nodeChildExists(path[d], pos)
+			                  ? tree.getNodeChild(path[d], pos)
+			                  : tree.createNodeChild(path[d], pos);
+		}
+		valid = depth;
+		tree.updateNodeLogOdds(path[depth], update);
+		prev = &k;
+	}
+}
+}  // namespace
+
 struct DiscreteRayCaster::Impl
 {
 	explicit Impl(double resolution_m) : keys(resolution_m) {}
@@ -327,8 +372,8 @@ OctomapSummary writeOctomap(const Keyframes& keyframes,
 		const Rays r = pending[j % kCasters].get();  // rethrows a loader error
 		launch(j + kCasters);
 		// lazy_eval: inner nodes are updated once at the end.
-		for (const auto& k : r.free) tree.updateNode(k, false, true);
-		for (const auto& k : r.occupied) tree.updateNode(k, true, true);
+		updateInTreeOrder(tree, r.free, false);
+		updateInTreeOrder(tree, r.occupied, true);
 		s.keyframes++;
 		s.rays += r.points;
 	}
