@@ -148,10 +148,7 @@ inline octomap::OcTreeKey fromMorton(uint64_t m)
 	    static_cast<octomap::key_type>(compactBits(m >> 1)),
 	    static_cast<octomap::key_type>(compactBits(m)));
 }
-}  // namespace
 
-namespace
-{
 /** tree.updateNode(k, occupied, lazy_eval = true) for every key, in tree
  * order: the path of the previous key is kept and only the levels below
  * the first child index that differs are descended (16 levels from the
@@ -193,6 +190,21 @@ void updateInTreeOrder(octomap::OcTree& tree,
 		prev = &k;
 	}
 }
+
+/** Sorts 48-bit codes: three counting passes of 16 bits, least significant
+ * first, linear in the number of codes (a keyframe has ~10^6). */
+void radixSort48(std::vector<uint64_t>& v, std::vector<uint64_t>& buffer)
+{
+	buffer.resize(v.size());
+	for (int shift = 0; shift < 48; shift += 16)
+	{
+		std::vector<uint32_t> count(65537, 0);
+		for (uint64_t x : v) count[((x >> shift) & 0xffff) + 1]++;
+		for (size_t i = 1; i < count.size(); i++) count[i] += count[i - 1];
+		for (uint64_t x : v) buffer[count[(x >> shift) & 0xffff]++] = x;
+		v.swap(buffer);
+	}
+}
 }  // namespace
 
 struct DiscreteRayCaster::Impl
@@ -211,24 +223,6 @@ struct DiscreteRayCaster::Impl
 	static constexpr size_t kRecent = 4096;
 	std::vector<uint64_t> recent = std::vector<uint64_t>(kRecent, ~0ull);
 };
-
-namespace
-{
-/** Sorts 48-bit codes: least significant 16 bits first, three counting
- * passes (a keyframe's million free codes: a third of std::sort's time). */
-void radixSort48(std::vector<uint64_t>& v, std::vector<uint64_t>& buffer)
-{
-	buffer.resize(v.size());
-	for (int shift = 0; shift < 48; shift += 16)
-	{
-		std::vector<uint32_t> count(65537, 0);
-		for (uint64_t x : v) count[((x >> shift) & 0xffff) + 1]++;
-		for (size_t i = 1; i < count.size(); i++) count[i] += count[i - 1];
-		for (uint64_t x : v) buffer[count[(x >> shift) & 0xffff]++] = x;
-		v.swap(buffer);
-	}
-}
-}  // namespace
 
 DiscreteRayCaster::DiscreteRayCaster(double resolution_m)
     : impl_(std::make_unique<Impl>(resolution_m))
