@@ -275,7 +275,8 @@ PositionErrorStructure positionErrorStructure(
 	out.rmse_after_offset_m = rmse(G.colwise() + offset);
 	// The 2D similarity in closed form (Umeyama in the plane): about the
 	// centroids, the rotation from the summed dot and cross products, the
-	// scale from their norm over the GT's spread.
+	// scale from their norm over the GT's spread. (Eigen::umeyama, which
+	// umeyamaSe3 uses in 3D, draws GCC 12's -Wstringop-overread on 2x2.)
 	const Eigen::Vector2d cg = G.rowwise().mean(), ce = E.rowwise().mean();
 	const Eigen::Matrix2Xd g = G.colwise() - cg, e = E.colwise() - ce;
 	const double dot = (g.array() * e.array()).sum();
