@@ -247,27 +247,34 @@ def show(r):
     sys.stdout.flush()
 
 
+def tree_figure(key):
+    """Getter of a tree figure of a run (None without a tree list)."""
+    return lambda r: (r["trees"] or {}).get(key)
+
+
+def scale_error(r):
+    """The map's scale minus 1 (None without a tree list or a fit)."""
+    s = tree_figure("position_map_scale")(r)
+    return None if s is None else s - 1
+
+
 # The band's figures: label, getter, format, scale, target test.
 BAND = [
     ("scans/s", lambda r: r["scans_per_s"], ".1f", 1, lambda v: v >= 100),
     ("ATE m", lambda r: r["ate_m"], ".3f", 1, None),
     ("RPE %", lambda r: r["rpe_trans_pct"], ".3f", 1, None),
     ("peak RSS MB", lambda r: r["peak_rss_mb"], ".0f", 1, lambda v: v <= 2048),
-    ("tree recall %", lambda r: (r["trees"] or {}).get("recall"), ".1f", 100,
+    ("tree recall %", tree_figure("recall"), ".1f", 100, lambda v: v >= 98),
+    ("tree precision %", tree_figure("precision"), ".1f", 100,
      lambda v: v >= 98),
-    ("tree precision %", lambda r: (r["trees"] or {}).get("precision"), ".1f",
-     100, lambda v: v >= 98),
-    ("DBH RMSE cm", lambda r: (r["trees"] or {}).get("dbh_rmse_m"), ".2f", 100,
-     lambda v: v <= 1.0),
-    ("DBH bias cm", lambda r: (r["trees"] or {}).get("dbh_bias_m"), "+.2f",
-     100, lambda v: abs(v) <= 0.3),
-    ("position RMSE cm", lambda r: (r["trees"] or {}).get("position_rmse_m"),
-     ".1f", 100, lambda v: v <= 5.0),
-    ("map scale %", lambda r: None if (r["trees"] or {}).get(
-        "position_map_scale") is None else r["trees"]["position_map_scale"] - 1,
-     "+.3f", 100, None),
-    ("after similarity cm", lambda r: (r["trees"] or {}).get(
-        "position_rmse_after_similarity_m"), ".1f", 100, None),
+    ("DBH RMSE cm", tree_figure("dbh_rmse_m"), ".2f", 100, lambda v: v <= 1.0),
+    ("DBH bias cm", tree_figure("dbh_bias_m"), "+.2f", 100,
+     lambda v: abs(v) <= 0.3),
+    ("position RMSE cm", tree_figure("position_rmse_m"), ".1f", 100,
+     lambda v: v <= 5.0),
+    ("map scale %", scale_error, "+.3f", 100, None),
+    ("after similarity cm", tree_figure("position_rmse_after_similarity_m"),
+     ".1f", 100, None),
 ]
 
 

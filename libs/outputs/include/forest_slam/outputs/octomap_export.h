@@ -11,11 +11,6 @@
 #include <string>
 #include <vector>
 
-namespace octomap
-{
-class OcTree;
-}
-
 namespace forest_slam::outputs
 {
 struct OctomapSummary
