@@ -603,6 +603,71 @@ TEST(TreeLayer, PassesMergedDuringTheRunThenCorrectedAtTheEnd)
 	EXPECT_LT(worstDbhError(stems, m.trees()), 0.01);
 }
 
+TEST(TreeLayer, PassesMergedInStepsWhileTheNextPassComesIn)
+{
+	// As above, with the first merge in steps (a column per step) while
+	// the next pass is mapped: its points, in the corrected frame, must not
+	// move with the merge. The merge's correction is that of the last scan
+	// it knows for every later time too (as core::TimeIndex answers), so a
+	// merge that moved them would put the second pass 10 cm off.
+	const std::vector<Stem> stems = {{4, 5, 0.15},
+	                                 {9, -6, 0.2},
+	                                 {14, 4, 0.1},
+	                                 {27, 6, 0.25},
+	                                 {33, -5, 0.12}};
+	const Eigen::Vector3f d(0.12, -0.08, 0.02), e(0.05, 0.03, 0);
+	TreeOptions o;
+	TreeLayer layer(o, 10.0);  // columns of 10 m: several steps
+	map::CForestMap m;
+	std::mt19937 rng(5);
+	auto shift = [](const Eigen::Vector3f& v)
+	{
+		Eigen::Isometry3f T = Eigen::Isometry3f::Identity();
+		T.translation() = v;
+		return T;
+	};
+	const auto column = [](const ColumnKey&)
+	{ return Eigen::Isometry3d::Identity(); };
+	const auto first = [&](double) { return shift(-d); };
+	TreeLayer::CorrectionSteps steps;
+	size_t step_calls = 0;
+	auto pass = [&](double y, double t0, const Eigen::Vector3f& off, bool out)
+	{
+		double t = t0;
+		for (double i = 0; i <= 50; i += 1.0, t += 1.0)
+		{
+			const double x = out ? -5 + i : 45 - i;
+			const Eigen::Vector3d s(x, y, ground(x, y) + 1.5);
+			auto pts = scan(stems, s, rng);
+			for (auto& p : pts) p += off;
+			layer.addScan(pts, s + off.cast<double>(), t);
+			layer.update(s + off.cast<double>(), m);
+			if (steps.done()) continue;
+			step_calls++;
+			layer.correctStep(steps, first, column, m, 1);
+		}
+	};
+	pass(0, 100, d, true);
+	steps = layer.beginCorrection(true);
+	ASSERT_GE(steps.keys.size(), 4u);
+	layer.correctStep(steps, first, column, m, 1);
+	EXPECT_FALSE(steps.done());
+	layer.startPass();
+	pass(1, 200, Eigen::Vector3f::Zero(), false);
+	EXPECT_TRUE(steps.done());
+	EXPECT_GE(step_calls, steps.keys.size() - 1);
+	layer.startPass();
+	pass(-1, 300, e, true);
+	layer.correct(
+	    [&](double ts) {
+		    return ts < 300 ? shift({0, 0, 0}) : shift(-e);
+	    },
+	    column, m);
+	layer.finish(m);
+	ASSERT_EQ(m.trees().size(), stems.size());
+	EXPECT_LT(worstDbhError(stems, m.trees()), 0.01);
+}
+
 // The store keeps a column's voxels sorted by cell (x, then y, then z; the
 // sort buckets by x cell first) with one voxel per cell: points given in
 // random order, every cell twice, spread over ~500 x cells.

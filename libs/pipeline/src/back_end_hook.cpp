@@ -17,6 +17,7 @@
 #include <GeographicLib/LocalCartesian.hpp>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <unordered_map>
@@ -26,6 +27,23 @@ namespace forest_slam::pipeline
 struct MappingPipeline::GnssOrigin
 {
 	GeographicLib::LocalCartesian enu;
+};
+
+struct MappingPipeline::TreeMerge
+{
+	/** Correction of every scan mapped at the merge's start. */
+	std::vector<Eigen::Isometry3f, Eigen::aligned_allocator<Eigen::Isometry3f>>
+	    C;
+	core::TimeIndex clock{std::vector<double>{0.0}};
+	std::vector<Eigen::Vector2d> xy;  ///< their positions as mapped
+	// On the map worker only:
+	std::optional<trees::TreeLayer::CorrectionSteps> steps;
+	size_t step_jobs = 0;
+	std::chrono::steady_clock::time_point started;
+	double rss0_mb = 0;
+	/** Set by the last step; read by the mapping thread, which stops
+	 * queueing steps (one too many is a no-op). */
+	std::atomic<bool> done{false};
 };
 
 void MappingPipeline::initBackEnd()
@@ -47,6 +65,10 @@ void MappingPipeline::initBackEnd()
 
 namespace
 {
+/** Stem-band voxels moved per mapped scan by an in-run merge of the tree
+ * layer's passes (whole columns: at least one per step). */
+constexpr size_t kTreeMergeStepVoxels = 300000;
+
 double angleDeg(const Eigen::Matrix3d& R)
 {
 	return Eigen::AngleAxisd(R).angle() * 180.0 / M_PI;
@@ -56,6 +78,12 @@ double angleDeg(const Eigen::Matrix3d& R)
 void MappingPipeline::backEndScan(const PendingScan& s, core::StampedPose& pose)
 {
 	if (!backend_) return;
+	// An in-run merge of the tree layer's passes goes on, a step after the
+	// insertion of each scan.
+	if (tree_merge_ && tree_merge_->done)
+		tree_merge_.reset();
+	else if (tree_merge_)
+		stepTreeMerge(kTreeMergeStepVoxels);
 	const auto& lo = cfg_.loop;
 	if (last_scan_pose_)
 		travelled_m_ +=
@@ -147,10 +175,16 @@ void MappingPipeline::backEndScan(const PendingScan& s, core::StampedPose& pose)
 					mergeForestMapSegments(now);
 					mergeTreeLayerPasses(now);
 				}
-				const size_t n = map_.segmentCount();
-				map_.startSegment();
-				if (map_.segmentCount() > n)
-					map_segment_first_scan_.push_back(trajectory_.size() + 1);
+				// On the map worker, after the merge queued above (if one
+				// was): the segment starts after this scan's insertion.
+				odometry_->runOnMap(
+				    [this, first = trajectory_.size() + 1](map::CForestMap& m)
+				    {
+					    const size_t n = m.segmentCount();
+					    m.startSegment();
+					    if (m.segmentCount() > n)
+						    map_segment_first_scan_.push_back(first);
+				    });
 			}
 			// The tree layer: this scan and the next ones are a new pass
 			// (its job is queued after this one), unless the correction
@@ -428,10 +462,58 @@ core::Trajectory MappingPipeline::withMerged(
 	return out;
 }
 
+void MappingPipeline::stepTreeMerge(size_t max_voxels)
+{
+	if (!tree_merge_ || tree_merge_->done) return;
+	odometry_->runOnMap(
+	    [this, m = tree_merge_, max_voxels](map::CForestMap& fm)
+	    {
+		    if (m->done) return;
+		    if (!m->steps)
+		    {
+			    m->started = std::chrono::steady_clock::now();
+			    m->rss0_mb = core::currentRssMb();
+			    m->steps = tree_layer_->beginCorrection(true);
+		    }
+		    const auto at_time = [&](double ts)
+		    { return m->C[m->clock.at(ts)]; };
+		    const double column_m = tree_layer_->columnSize();
+		    const auto of_column = [&](const trees::ColumnKey& k)
+		    {
+			    return Eigen::Isometry3d(
+			        m->C[scanNearestColumn(m->xy, k, column_m)].cast<double>());
+		    };
+		    m->step_jobs++;
+		    if (!tree_layer_->correctStep(*m->steps, at_time, of_column, fm,
+		                                  max_voxels))
+			    return;
+		    // Rare (a handful an hour): logged with the memory.
+		    FS_LOG_INFO("tree layer: passes merged during the run ("
+		                << m->steps->keys.size() << " columns in "
+		                << m->step_jobs << " steps) over "
+		                << std::chrono::duration<double>(
+		                       std::chrono::steady_clock::now() - m->started)
+		                       .count()
+		                << " s; RSS " << m->rss0_mb << " -> "
+		                << core::currentRssMb() << " MB");
+		    m->done = true;
+	    });
+}
+
+void MappingPipeline::completeTreeMerge()
+{
+	stepTreeMerge(std::numeric_limits<size_t>::max());
+	tree_merge_.reset();  // the queued job holds it
+}
+
 void MappingPipeline::mergeTreeLayerPasses(const core::Trajectory& now)
 {
 	// The map worker is idle (flushed): its counts can be read.
 	if (!tree_layer_) return;
+	// A merge still in steps goes on; the next correction looks again.
+	// (Flushed, every step queued so far has run: whether it is done is
+	// the same in every run.)
+	if (tree_merge_ && !tree_merge_->done) return;
 	const size_t voxels = tree_layer_->stats().stored_voxels;
 	const double density = double(voxels) / double(std::max<size_t>(
 	                                            1, tree_layer_->groundCells()));
@@ -464,35 +546,14 @@ void MappingPipeline::mergeTreeLayerPasses(const core::Trajectory& now)
 		if (2 * density < 3 * tree_density_at_merge_) return;
 	}
 	const core::Trajectory mapped = withMerged(trajectory_, tree_merged_pose_);
-	auto C = std::make_shared<std::vector<
-	    Eigen::Isometry3f, Eigen::aligned_allocator<Eigen::Isometry3f>>>(
-	    scanCorrections(now, mapped));
-	auto clock = std::make_shared<const core::TimeIndex>(scanTimes(mapped));
+	auto m = std::make_shared<TreeMerge>();
+	m->C = scanCorrections(now, mapped);
+	m->clock = core::TimeIndex(scanTimes(mapped));
 	// Ground cells and trees: the correction of the scan nearest to the
 	// column's centre (as in correctTreeLayer).
-	auto xy =
-	    std::make_shared<std::vector<Eigen::Vector2d>>(scanPositions(mapped));
-	const double column_m = tree_layer_->columnSize();
-	odometry_->runOnMap(
-	    [this, C, clock, xy, column_m](map::CForestMap& m)
-	    {
-		    const auto at_time = [&](double ts) { return (*C)[clock->at(ts)]; };
-		    const auto of_column = [&](const trees::ColumnKey& k)
-		    {
-			    return Eigen::Isometry3d(
-			        (*C)[scanNearestColumn(*xy, k, column_m)].cast<double>());
-		    };
-		    const double rss0 = core::currentRssMb();
-		    const auto t0 = std::chrono::steady_clock::now();
-		    tree_layer_->correct(at_time, of_column, m, true);
-		    // Rare (a handful an hour) and heavy: logged with the memory.
-		    FS_LOG_INFO("tree layer: passes merged during the run in "
-		                << std::chrono::duration<double>(
-		                       std::chrono::steady_clock::now() - t0)
-		                       .count()
-		                << " s; RSS " << rss0 << " -> " << core::currentRssMb()
-		                << " MB");
-	    });
+	m->xy = scanPositions(mapped);
+	tree_merge_ = m;
+	stepTreeMerge(kTreeMergeStepVoxels);
 	tree_merged_pose_.resize(now.size());
 	for (size_t i = 0; i < now.size(); i++) tree_merged_pose_[i] = now[i].pose;
 	// The count after the merge is known only on the worker: the next
@@ -504,29 +565,46 @@ void MappingPipeline::mergeTreeLayerPasses(const core::Trajectory& now)
 
 void MappingPipeline::mergeForestMapSegments(const core::Trajectory& now)
 {
+	// The map worker is idle (flushed): the map can be read here.
 	const size_t voxels = map_.edgePointCount() + map_.planarPointCount();
 	if (map_.segmentCount() < 2 || 2 * voxels < 3 * map_voxels_at_merge_)
 		return;
-	const auto t0 = std::chrono::steady_clock::now();
-	const double rss0 = core::currentRssMb();
 	const size_t segments = map_.segmentCount();
-	correctForestMap(trajectory_, now);
+	// Planned here, moved on the map worker: the odometry goes on meanwhile
+	// (0.4–1.3 s per merge on the forest-sim runs, which held the scans of
+	// a live run back), and the insertions queue behind the merge.
+	auto move = forestMapCorrection(trajectory_, now);
 	map_merged_pose_.resize(now.size());
 	for (size_t i = 0; i < now.size(); i++) map_merged_pose_[i] = now[i].pose;
-	map_voxels_at_merge_ = map_.edgePointCount() + map_.planarPointCount();
 	map_merges_++;
-	FS_LOG_INFO("CForestMap: " << segments << " segments, " << voxels
-	                           << " voxels merged into " << map_voxels_at_merge_
-	                           << " during the run in "
-	                           << std::chrono::duration<double>(
-	                                  std::chrono::steady_clock::now() - t0)
-	                                  .count()
-	                           << " s; RSS " << rss0 << " -> "
-	                           << core::currentRssMb() << " MB");
+	odometry_->runOnMap(
+	    [this, move = std::move(move), segments, voxels](map::CForestMap& m)
+	    {
+		    const auto t0 = std::chrono::steady_clock::now();
+		    const double rss0 = core::currentRssMb();
+		    move(m);
+		    // Read by the mapping thread after a flush only.
+		    map_voxels_at_merge_ = m.edgePointCount() + m.planarPointCount();
+		    FS_LOG_INFO("CForestMap: "
+		                << segments << " segments, " << voxels
+		                << " voxels merged into " << map_voxels_at_merge_
+		                << " during the run in "
+		                << std::chrono::duration<double>(
+		                       std::chrono::steady_clock::now() - t0)
+		                       .count()
+		                << " s; RSS " << rss0 << " -> " << core::currentRssMb()
+		                << " MB");
+	    });
 }
 
 void MappingPipeline::correctForestMap(const core::Trajectory& as_mapped,
                                        const core::Trajectory& target)
+{
+	forestMapCorrection(as_mapped, target)(map_);
+}
+
+std::function<void(map::CForestMap&)> MappingPipeline::forestMapCorrection(
+    const core::Trajectory& as_mapped, const core::Trajectory& target)
 {
 	// A voxel averages many scans: it moves with the correction of the
 	// scan of its segment that passed nearest to it (horizontally, where
@@ -539,54 +617,68 @@ void MappingPipeline::correctForestMap(const core::Trajectory& as_mapped,
 	core::Trajectory mapped = as_mapped;
 	for (size_t i = 0; i < map_merged_pose_.size() && i < mapped.size(); i++)
 		mapped[i].pose = map_merged_pose_[i];
-	const auto C = scanCorrections(target, mapped);
+	struct Plan
+	{
+		std::vector<Eigen::Isometry3f,
+		            Eigen::aligned_allocator<Eigen::Isometry3f>>
+		    C;
+		std::vector<Eigen::Vector2d> xy;  ///< scans as mapped
+		/** Per segment: its scans 0.5 m apart. */
+		std::vector<std::vector<size_t>> cand;
+	};
+	auto plan = std::make_shared<Plan>();
+	plan->C = scanCorrections(target, mapped);
+	plan->xy = scanPositions(mapped);
 	if (map_.segmentCount() != map_segment_first_scan_.size() + 1)
 		throw std::logic_error("back-end: CForestMap segment bookkeeping");
 	// Candidates per segment: its scans 0.5 m apart, without the scan
 	// mapped before the correction that ended it (its pose was corrected).
-	std::vector<std::vector<size_t>> cand(map_.segmentCount());
+	auto& cand = plan->cand;
+	cand.resize(map_.segmentCount());
 	for (size_t s = 0; s < cand.size(); s++)
 	{
 		const size_t a = s == 0 ? 0 : map_segment_first_scan_[s - 1];
 		const size_t b = s + 1 < cand.size() ? map_segment_first_scan_[s] - 1
 		                                     : mapped.size();
 		for (size_t i = a; i < std::min(b, mapped.size()); i++)
-			if (cand[s].empty() || (mapped[i].pose.translation() -
-			                        mapped[cand[s].back()].pose.translation())
-			                               .head<2>()
-			                               .norm() >= 0.5)
+			if (cand[s].empty() ||
+			    (plan->xy[i] - plan->xy[cand[s].back()]).norm() >= 0.5)
 				cand[s].push_back(i);
 		if (cand[s].empty()) cand[s].push_back(std::min(a, mapped.size() - 1));
 	}
-	// Nearest candidate per 1 m cell, computed once.
-	constexpr double kCell = 1.0;
-	std::unordered_map<uint64_t, size_t> nearest;
-	map_.transformSegments(
-	    [&](size_t s, const Eigen::Vector3f& c) -> Eigen::Isometry3f
-	    {
-		    const int64_t i = static_cast<int64_t>(std::floor(c.x() / kCell));
-		    const int64_t j = static_cast<int64_t>(std::floor(c.y() / kCell));
-		    const uint64_t key = (uint64_t(s) << 48) |
-		                         ((uint64_t(i) & 0xffffff) << 24) |
-		                         (uint64_t(j) & 0xffffff);
-		    auto it = nearest.find(key);
-		    if (it == nearest.end())
-		    {
-			    const Eigen::Vector2d q((i + 0.5) * kCell, (j + 0.5) * kCell);
-			    size_t best = cand[s].front();
-			    double bd = 1e300;
-			    for (const size_t n : cand[s])
-			    {
-				    const double d =
-				        (mapped[n].pose.translation().head<2>() - q)
-				            .squaredNorm();
-				    if (d < bd) bd = d, best = n;
-			    }
-			    it = nearest.emplace(key, best).first;
-		    }
-		    return C[it->second];
-	    });
 	map_segment_first_scan_.clear();
+	return [plan](map::CForestMap& m)
+	{
+		// Nearest candidate per 1 m cell, computed once.
+		constexpr double kCell = 1.0;
+		std::unordered_map<uint64_t, size_t> nearest;
+		m.transformSegments(
+		    [&](size_t s, const Eigen::Vector3f& c) -> Eigen::Isometry3f
+		    {
+			    const int64_t i =
+			        static_cast<int64_t>(std::floor(c.x() / kCell));
+			    const int64_t j =
+			        static_cast<int64_t>(std::floor(c.y() / kCell));
+			    const uint64_t key = (uint64_t(s) << 48) |
+			                         ((uint64_t(i) & 0xffffff) << 24) |
+			                         (uint64_t(j) & 0xffffff);
+			    auto it = nearest.find(key);
+			    if (it == nearest.end())
+			    {
+				    const Eigen::Vector2d q((i + 0.5) * kCell,
+				                            (j + 0.5) * kCell);
+				    size_t best = plan->cand[s].front();
+				    double bd = 1e300;
+				    for (const size_t n : plan->cand[s])
+				    {
+					    const double d = (plan->xy[n] - q).squaredNorm();
+					    if (d < bd) bd = d, best = n;
+				    }
+				    it = nearest.emplace(key, best).first;
+			    }
+			    return plan->C[it->second];
+		    });
+	};
 }
 
 std::optional<outputs::GeoOptions> MappingPipeline::estimatedGeoreference()

@@ -101,9 +101,11 @@ std::string distributionJson(std::vector<double>& v)
 }
 
 /** {"ground": {"median":..,"p95":..,"max":..}, ...} over the scans, with the
- * tree layer ("trees": per scan) last. */
+ * tree layer ("trees": per scan) and the back-end hook ("backend", with a
+ * back-end only) last. */
 std::string stageTimesJson(const std::vector<odometry::ScanTiming>& t,
-                           std::vector<double> tree_ms)
+                           std::vector<double> tree_ms,
+                           std::vector<double> backend_ms)
 {
 	using T = odometry::ScanTiming;
 	const std::pair<const char*, double T::*> stages[] = {
@@ -121,7 +123,10 @@ std::string stageTimesJson(const std::vector<odometry::ScanTiming>& t,
 		   << "\": " << distributionJson(v);
 		first = false;
 	}
-	os << ", \"trees\": " << distributionJson(tree_ms) << "}";
+	os << ", \"trees\": " << distributionJson(tree_ms);
+	if (!backend_ms.empty())
+		os << ", \"backend\": " << distributionJson(backend_ms);
+	os << "}";
 	return os.str();
 }
 
@@ -481,8 +486,8 @@ std::vector<std::string> writeOutputs(const MappingPipeline& p,
 		       << "  \"cpu_seconds\": " << cpu_s << ",\n"
 		       << "  \"heap_huge_pages\": "
 		       << (core::heapOnHugePages() ? "true" : "false") << ",\n"
-		       << "  \"stage_ms\": " << stageTimesJson(s.stage_ms, s.tree_ms)
-		       << ",\n"
+		       << "  \"stage_ms\": "
+		       << stageTimesJson(s.stage_ms, s.tree_ms, s.backend_ms) << ",\n"
 		       << "  \"map_edge_voxels\": " << p.forestMap().edgePointCount()
 		       << ",\n"
 		       << "  \"map_planar_voxels\": "

@@ -10,6 +10,7 @@
 #include <mrpt/system/datetime.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <deque>
@@ -295,6 +296,7 @@ const trees::TreeLayer* MappingPipeline::treeLayer() const
 void MappingPipeline::finish()
 {
 	drainPending(true);
+	completeTreeMerge();  // an in-run merge of the tree layer's passes
 	if (odometry_) odometry_->flushMap();  // the outputs read the CForestMap
 	// The maps and the tree layer's points follow the corrected trajectory
 	// first, then the layer detects the columns not done yet and those
@@ -397,7 +399,14 @@ void MappingPipeline::runOdometry(PendingScan& s)
 			                  s.sensor_pose.getRotationMatrix().asEigen());
 	}
 	auto step = odometry_->processScan(s.pts);
-	backEndScan(s, step.pose);
+	if (backend_)
+	{
+		const auto t0 = std::chrono::steady_clock::now();
+		backEndScan(s, step.pose);
+		stats_.backend_ms.push_back(std::chrono::duration<double, std::milli>(
+		                                std::chrono::steady_clock::now() - t0)
+		                                .count());
+	}
 	imu_buffer_.pruneBefore(s.pts.stamp_s - 1.0);
 	trajectory_.push_back(step.pose);
 	outputs_.addScan(s.pts, step.pose, odometry_->lastDeskewed(),

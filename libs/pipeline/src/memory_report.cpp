@@ -39,9 +39,9 @@ MemorySample sampleMemory(const MappingPipeline& p)
 		s.back_end_mb = toMb(b->cloudBytes());
 		s.spilled_mb += toMb(b->cloudBytesSpilled());
 	}
-	s.trajectory_mb =
-	    toMb(core::vectorBytes(p.trajectory()) +
-	         core::vectorBytes(st.stage_ms) + core::vectorBytes(st.tree_ms));
+	s.trajectory_mb = toMb(
+	    core::vectorBytes(p.trajectory()) + core::vectorBytes(st.stage_ms) +
+	    core::vectorBytes(st.tree_ms) + core::vectorBytes(st.backend_ms));
 	return s;
 }
 

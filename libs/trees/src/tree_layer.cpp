@@ -202,12 +202,17 @@ void TreeLayer::SortedVoxels::transform(const Eigen::Isometry3f& T)
 
 float TreeLayer::SortedVoxels::transformByTime(
     const std::function<Eigen::Isometry3f(float)>& at,
-    const Eigen::Isometry3f& T, bool dominant_time)
+    const Eigen::Isometry3f& T, bool dominant_time, uint32_t last_pass)
 {
 	compact();
+	// The passes merged; the later ones keep their number (the pass field
+	// saturates, and so does the comparison).
+	const auto merged = [last = std::min<uint32_t>(last_pass, 0xffff)](
+	                        const Voxel& v) { return v.pass <= last; };
 	float worst = 0;
 	for (auto& v : voxels_)  // in place, as transform()
 	{
+		if (!merged(v)) continue;
 		const Eigen::Isometry3f C = at(v.time);
 		const Eigen::Vector3f c0 = centroid(v), c = C * c0;
 		worst = std::max(worst, (c - T * c0).norm());
@@ -219,15 +224,21 @@ float TreeLayer::SortedVoxels::transformByTime(
 	}
 	sortAndCombine();
 	if (!dominant_time) return worst;
-	// Within a pass the times were averaged (sortAndCombine); across passes
-	// the time of the largest count stays: each cell's voxels (sorted by key
-	// already) ordered by segment, then count, largest first. A stable
-	// insertion sort per cell (a few voxels: its passes and segments), the
-	// same order as a stable sort of the whole set, which took a buffer as
-	// large as the set (a long run's column: hundreds of MB at once).
-	const auto before = [](const Voxel& a, const Voxel& b) {
-		return a.segment != b.segment ? a.segment < b.segment
-		                              : a.count > b.count;
+	// Within a pass the times were averaged (sortAndCombine); across the
+	// merged passes the time of the largest count stays: each cell's
+	// voxels (sorted by key already) ordered by pass after the merge, then
+	// segment, then count, largest first. A stable insertion sort per cell
+	// (a few voxels: its passes and segments), the same order as a stable
+	// sort of the whole set, which took a buffer as large as the set (a
+	// long run's column: hundreds of MB at once).
+	const auto passAfter = [&](const Voxel& v) -> uint16_t
+	{ return merged(v) ? 0 : v.pass; };
+	const auto before = [&](const Voxel& a, const Voxel& b)
+	{
+		const uint16_t pa = passAfter(a), pb = passAfter(b);
+		return pa != pb                 ? pa < pb
+		       : a.segment != b.segment ? a.segment < b.segment
+		                                : a.count > b.count;
 	};
 	for (size_t g = 0; g < voxels_.size();)
 	{
@@ -247,13 +258,14 @@ float TreeLayer::SortedVoxels::transformByTime(
 	for (size_t i = 0; i < voxels_.size(); i++)
 	{
 		const Voxel& v = voxels_[i];
-		if (i > 0 && voxels_[w].key == v.key && voxels_[w].segment == v.segment)
+		if (i > 0 && voxels_[w].key == v.key &&
+		    voxels_[w].segment == v.segment && voxels_[w].pass == passAfter(v))
 			addMeans(voxels_[w], v);
 		else
 		{
 			if (i > 0) w++;
 			voxels_[w] = v;
-			voxels_[w].pass = 0;
+			voxels_[w].pass = passAfter(v);
 		}
 	}
 	voxels_.resize(voxels_.empty() ? 0 : w + 1);
@@ -1086,34 +1098,63 @@ size_t TreeLayer::correct(
     const std::function<Eigen::Isometry3d(const ColumnKey&)>& of_column,
     map::CForestMap& map, bool in_run)
 {
+	CorrectionSteps steps = beginCorrection(in_run);
+	correctStep(steps, at_time, of_column, map,
+	            std::numeric_limits<size_t>::max());
+	return steps.redetect;
+}
+
+TreeLayer::CorrectionSteps TreeLayer::beginCorrection(bool in_run) const
+{
 	if (released_)
 		throw std::logic_error("TreeLayer::correct after releaseStemVoxels");
+	CorrectionSteps steps;
+	steps.keys = columns();
+	steps.in_run = in_run;
+	// In the run the passes started from now on are in the newer frame;
+	// at the end every pass is moved.
+	steps.last_pass = in_run ? pass_ : UINT32_MAX;
+	return steps;
+}
+
+bool TreeLayer::correctStep(
+    CorrectionSteps& steps,
+    const std::function<Eigen::Isometry3f(double t_s)>& at_time,
+    const std::function<Eigen::Isometry3d(const ColumnKey&)>& of_column,
+    map::CForestMap& map, size_t max_voxels)
+{
+	if (released_)
+		throw std::logic_error("TreeLayer::correct after releaseStemVoxels");
+	if (steps.done()) return true;
 	const auto started = std::chrono::steady_clock::now();
 	const CpuTally cpu(stats_.cpu_ms);
 	const double t0 = std::isfinite(t0_s_) ? t0_s_ : 0.0;
 	const float rigid_m = float(0.5 * o_.layer_voxel_m);
+	const std::vector<ColumnKey>& keys = steps.keys;
 	// Columns are moved two at a time (the end of a run waited seconds for
 	// this on one core), unless the two would hold more than
 	// kTwoAtOnceVoxels; the spill file and the counts are shared (mtx).
-	const std::vector<ColumnKey> keys = columns();
-	size_t redetect = 0, next = 0, running = 0, running_voxels = 0;
+	// The step ends once its columns held max_voxels: taken in key order
+	// under the lock, so the same columns whatever the thread timing.
+	size_t running = 0, running_voxels = 0, taken_voxels = 0;
 	std::mutex mtx;
 	std::condition_variable freed;
 	std::exception_ptr error;
 	auto work = [&]
 	{
 		std::unique_lock<std::mutex> lock(mtx);
-		while (next < keys.size() && !error)
+		while (steps.next < keys.size() && taken_voxels < max_voxels && !error)
 		{
-			Column& c = cols_.at(keys[next]);
+			Column& c = cols_.at(keys[steps.next]);
 			const size_t w = c.stem.size();
 			if (running > 0 && running_voxels + w > kTwoAtOnceVoxels)
 			{
 				freed.wait(lock);
 				continue;
 			}
-			const ColumnKey k = keys[next++];
+			const ColumnKey k = keys[steps.next++];
 			running++, running_voxels += w;
+			taken_voxels += std::max<size_t>(w, 1);
 			lock.unlock();
 			try
 			{
@@ -1122,7 +1163,7 @@ size_t TreeLayer::correct(
 				const size_t before = stem.size();
 				const float worst = stem.transformByTime(
 				    [&](float t) { return at_time(t0 + double(t)); },
-				    T.cast<float>(), in_run);
+				    T.cast<float>(), steps.in_run, steps.last_pass);
 				moveGroundAndTrees(c, T);
 				stem.compact();
 				lock.lock();
@@ -1134,7 +1175,7 @@ size_t TreeLayer::correct(
 				if (worst > rigid_m)
 				{
 					c.dirty = true;
-					redetect++;
+					steps.redetect++;
 				}
 				// finish() reads back the columns it detects and their
 				// neighbours only: the corrected whole does not stay in
@@ -1152,14 +1193,19 @@ size_t TreeLayer::correct(
 	};
 	{
 		std::optional<SecondThread> second;
-		if (keys.size() > 1) second.emplace(work, stats_.cpu_ms);
+		if (keys.size() - steps.next > 1) second.emplace(work, stats_.cpu_ms);
 		work();
 	}
 	if (error) std::rethrow_exception(error);
-	pass_ = 0;
-	publish(map);
+	if (steps.done())
+	{
+		// At the end of the run every pass is now one; in the run the
+		// passes after last_pass go on (their frame is the newer one).
+		if (!steps.in_run) pass_ = 0;
+		publish(map);
+	}
 	stats_.correct_ms += msSince(started);
-	return redetect;
+	return steps.done();
 }
 
 void TreeLayer::moveGroundAndTrees(Column& c, const Eigen::Isometry3d& T)

@@ -15,6 +15,7 @@
 #include <mrpt/poses/CPose3D.h>
 #include <cstdint>
 #include <deque>
+#include <functional>
 #include <memory>
 #include <optional>
 
@@ -55,6 +56,11 @@ struct RunStats
 	/** Tree layer milliseconds, one entry per mapped scan (store + the
 	 * column detections that scan triggered), and the end-of-run pass. */
 	std::vector<double> tree_ms;
+	/** Back-end hook milliseconds on the mapping thread, one entry per
+	 * scan mapped with a back-end: keyframes, corrections, and the waits
+	 * for the map worker they need (a stall here holds a live run's
+	 * scans back). */
+	std::vector<double> backend_ms;
 	double tree_finish_ms = 0;
 	uint64_t points_in = 0;
 	double first_stamp_s = 0, last_stamp_s = 0;
@@ -213,7 +219,8 @@ class MappingPipeline
 	std::shared_ptr<GnssOrigin> gnss_origin_;
 	/** CForestMap segments (CForestMap::startSegment): the first scan of
 	 * each segment after the first; a new one starts after a correction
-	 * that moves the map by more than half an edge voxel. */
+	 * that moves the map by more than half an edge voxel. Appended on the
+	 * map worker (the segment starts there), read after a flush. */
 	std::vector<size_t> map_segment_first_scan_;
 	/** Poses of the first scans in the frame their CForestMap voxels are
 	 * in since the last in-run merge of the segments (the back-end's
@@ -221,8 +228,10 @@ class MappingPipeline
 	 * (trajectory_). */
 	std::vector<Eigen::Isometry3d, Eigen::aligned_allocator<Eigen::Isometry3d>>
 	    map_merged_pose_;
-	size_t map_voxels_at_merge_ = 0;  ///< CForestMap voxels after it
-	size_t map_merges_ = 0;           ///< in-run merges so far
+	/** CForestMap voxels after the last merge (set on the map worker,
+	 * read after a flush). */
+	size_t map_voxels_at_merge_ = 0;
+	size_t map_merges_ = 0;  ///< in-run merges so far
 	/** The same for the tree layer's stem-band voxels (merged on their
 	 * own schedule, on the map worker). */
 	std::vector<Eigen::Isometry3d, Eigen::aligned_allocator<Eigen::Isometry3d>>
@@ -232,6 +241,16 @@ class MappingPipeline
 	 * layer's passes (or at the first correction); 0 before. */
 	double tree_density_at_merge_ = 0;
 	size_t tree_merges_ = 0;
+	/** The tree layer's in-run merge in progress, moved a few columns per
+	 * mapped scan (a step job on the map worker after each scan's
+	 * insertion: the same steps in every run, whatever the timing). */
+	struct TreeMerge;
+	std::shared_ptr<TreeMerge> tree_merge_;
+	/** Queues the next step of tree_merge_ (`max_voxels`: all the rest). */
+	void stepTreeMerge(size_t max_voxels);
+	/** Queues the rest of tree_merge_ as one job (at the end of the run,
+	 * which reads the layer as a whole). */
+	void completeTreeMerge();
 	/** The back-end's estimate of every scan mapped so far, after the
 	 * correction `C` with keyframe estimate `X`. */
 	core::Trajectory currentEstimate(const loop::Poses& X,
@@ -250,10 +269,15 @@ class MappingPipeline
 	 * scans as mapped) to `target` and merges the segments into one. */
 	void correctForestMap(const core::Trajectory& mapped,
 	                      const core::Trajectory& target);
+	/** correctForestMap as a job for the map worker, planned now (the map
+	 * is read: call with the worker idle). */
+	std::function<void(map::CForestMap&)> forestMapCorrection(
+	    const core::Trajectory& mapped, const core::Trajectory& target);
 	/** In the run, after the correction `C` (old map frame to new) with the
 	 * back-end's keyframe estimate `X`: merges the CForestMap segments at
 	 * that estimate when they hold half as many voxels again as after the
-	 * last merge (each revisit after a correction copies what it sees). */
+	 * last merge (each revisit after a correction copies what it sees);
+	 * planned here, the voxels moved by a job on the map worker. */
 	void mergeForestMapSegments(const core::Trajectory& now);
 	/** Likewise the tree layer's passes (a job on the map worker) when
 	 * the layer holds half as many stem voxels again as after the last. */

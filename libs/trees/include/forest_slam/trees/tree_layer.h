@@ -127,6 +127,31 @@ class TreeLayer
 	    const std::function<Eigen::Isometry3d(const ColumnKey&)>& of_column,
 	    map::CForestMap& map, bool in_run = false);
 
+	/** correct() a few columns at a time: an in-run merge in steps, so
+	 * that the scans mapped meanwhile are not held up (the robot run's
+	 * merge took 5–6 s on the map thread in one piece). The passes started
+	 * up to beginCorrection() are merged (pass 0); the later ones, whose
+	 * scans are in the newer frame, are left as they are, so points can
+	 * be added and startPass() called between the steps. */
+	struct CorrectionSteps
+	{
+		std::vector<ColumnKey> keys;  ///< the columns at the start
+		size_t next = 0;              ///< first of keys not moved yet
+		uint32_t last_pass = 0;       ///< passes merged: 0..last_pass
+		bool in_run = true;
+		size_t redetect = 0;  ///< columns whose passes disagreed so far
+		bool done() const { return next >= keys.size(); }
+	};
+	CorrectionSteps beginCorrection(bool in_run) const;
+	/** Moves the next columns of `steps` (as correct()) until they held
+	 * `max_voxels` stem-band voxels (at least one column); after the last
+	 * one writes the tree layer into `map`. Returns steps.done(). */
+	bool correctStep(
+	    CorrectionSteps& steps,
+	    const std::function<Eigen::Isometry3f(double t_s)>& at_time,
+	    const std::function<Eigen::Isometry3d(const ColumnKey&)>& of_column,
+	    map::CForestMap& map, size_t max_voxels);
+
 	/** End of a run, after finish(): frees the stem-band voxels (in memory
 	 * and spilled; 1.2 GB at the end of the 7-minute handheld run, whose
 	 * final loop correction had read every spilled column back). The trees
@@ -227,11 +252,13 @@ class TreeLayer
 		void transform(const Eigen::Isometry3f& T);
 		/** Moves each voxel with `at(mean time)` and merges the passes
 		 * (the merged time: weighted mean, or with `dominant_time` that of
-		 * the pass with most points); returns the largest distance between
+		 * the pass with most points); the passes after `last_pass` stay
+		 * where and as they are. Returns the largest distance between
 		 * where a voxel went and where `T` would have put it. */
 		float transformByTime(const std::function<Eigen::Isometry3f(float)>& at,
 		                      const Eigen::Isometry3f& T,
-		                      bool dominant_time = false);
+		                      bool dominant_time = false,
+		                      uint32_t last_pass = UINT32_MAX);
 		/** Drops every voxel (and forgets a spilled set). */
 		void release()
 		{
