@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <random>
 #include <set>
 #include <tuple>
@@ -516,15 +517,67 @@ double worstDbhError(const std::vector<Stem>& stems,
 	}
 	return worst;
 }
+
+/** The stems the passes below drive by. */
+const std::vector<Stem> kPassStems = {
+    {4, 5, 0.15}, {9, -6, 0.2}, {14, 4, 0.1}, {27, 6, 0.25}, {33, -5, 0.12}};
+
+Eigen::Isometry3f shiftBy(const Eigen::Vector3f& v)
+{
+	Eigen::Isometry3f T = Eigen::Isometry3f::Identity();
+	T.translation() = v;
+	return T;
+}
+
+Eigen::Isometry3d columnStays(const ColumnKey&)
+{
+	return Eigen::Isometry3d::Identity();
+}
+
+/** One pass of 51 scans 1 m apart along y (outwards from x = -5, or back
+ * from x = 45), from time t0 on, 1 s apart, every point and the sensor
+ * off by `off` (the drift of its frame); `after_scan` runs after each. */
+void drivePass(TreeLayer& layer, map::CForestMap& m, std::mt19937& rng,
+               const std::vector<Stem>& stems, double y, double t0,
+               const Eigen::Vector3f& off, bool out,
+               const std::function<void()>& after_scan = {})
+{
+	double t = t0;
+	for (double i = 0; i <= 50; i += 1.0, t += 1.0)
+	{
+		const double x = out ? -5 + i : 45 - i;
+		const Eigen::Vector3d s(x, y, ground(x, y) + 1.5);
+		auto pts = scan(stems, s, rng);
+		for (auto& p : pts) p += off;
+		layer.addScan(pts, s + off.cast<double>(), t);
+		layer.update(s + off.cast<double>(), m);
+		if (after_scan) after_scan();
+	}
+}
+
+/** The last pass of a run, its frame off by `e`, then the end: the final
+ * correction takes e back, the stems are detected. */
+std::vector<map::TreeRecord> lastPassThenEnd(TreeLayer& layer,
+                                             map::CForestMap& m,
+                                             std::mt19937& rng,
+                                             const Eigen::Vector3f& e)
+{
+	layer.startPass();
+	drivePass(layer, m, rng, kPassStems, -1, 300, e, true);
+	layer.correct(
+	    [&](double ts) {
+		    return shiftBy(ts < 300 ? Eigen::Vector3f::Zero()
+		                            : Eigen::Vector3f(-e));
+	    },
+	    columnStays, m);
+	layer.finish(m);
+	return m.trees();
+}
 }  // namespace
 
 TEST(TreeLayer, PassesMovedByTheirOwnCorrectionGiveOneStem)
 {
-	const std::vector<Stem> stems = {{4, 5, 0.15},
-	                                 {9, -6, 0.2},
-	                                 {14, 4, 0.1},
-	                                 {27, 6, 0.25},
-	                                 {33, -5, 0.12}};
+	const std::vector<Stem>& stems = kPassStems;
 	const Eigen::Vector3d d(0.12, -0.08, 0.02);
 	size_t redetected = 0;
 	const auto fixed = twoPasses(stems, d, true, true, &redetected);
@@ -544,128 +597,70 @@ TEST(TreeLayer, PassesMergedDuringTheRunThenCorrectedAtTheEnd)
 	// there. Pass 0 drifted by d; the first merge takes 80 % of it back;
 	// pass 1 is right; the second merge takes the rest (passes 0 and 1 now
 	// coincide and merge); pass 2 drifted by e, taken back at the end.
-	const std::vector<Stem> stems = {{4, 5, 0.15},
-	                                 {9, -6, 0.2},
-	                                 {14, 4, 0.1},
-	                                 {27, 6, 0.25},
-	                                 {33, -5, 0.12}};
+	const std::vector<Stem>& stems = kPassStems;
 	const Eigen::Vector3f d(0.12, -0.08, 0.02), e(0.05, 0.03, 0);
 	TreeLayer layer(TreeOptions{}, 20.0);
 	map::CForestMap m;
 	std::mt19937 rng(5);
-	auto shift = [](const Eigen::Vector3f& v)
-	{
-		Eigen::Isometry3f T = Eigen::Isometry3f::Identity();
-		T.translation() = v;
-		return T;
-	};
-	const auto column = [](const ColumnKey&)
-	{ return Eigen::Isometry3d::Identity(); };
-	auto pass = [&](double y, double t0, const Eigen::Vector3f& off, bool out)
-	{
-		double t = t0;
-		for (double i = 0; i <= 50; i += 1.0, t += 1.0)
-		{
-			const double x = out ? -5 + i : 45 - i;
-			const Eigen::Vector3d s(x, y, ground(x, y) + 1.5);
-			auto pts = scan(stems, s, rng);
-			for (auto& p : pts) p += off;
-			layer.addScan(pts, s + off.cast<double>(), t);
-			layer.update(s + off.cast<double>(), m);
-		}
-	};
-	pass(0, 100, d, true);
+	drivePass(layer, m, rng, stems, 0, 100, d, true);
 	layer.correct(
-	    [&](double ts) {
-		    return ts < 150 ? shift(-0.8f * d) : shift({0, 0, 0});
+	    [&](double ts)
+	    {
+		    return shiftBy(ts < 150 ? Eigen::Vector3f(-0.8f * d)
+		                            : Eigen::Vector3f::Zero());
 	    },
-	    column, m, true);
+	    columnStays, m, true);
 	layer.startPass();
-	pass(1, 200, Eigen::Vector3f::Zero(), false);
+	drivePass(layer, m, rng, stems, 1, 200, Eigen::Vector3f::Zero(), false);
 	const size_t before_merge = layer.stats().stored_voxels;
 	layer.correct(
-	    [&](double ts) {
-		    return ts < 150 ? shift(-0.2f * d) : shift({0, 0, 0});
+	    [&](double ts)
+	    {
+		    return shiftBy(ts < 150 ? Eigen::Vector3f(-0.2f * d)
+		                            : Eigen::Vector3f::Zero());
 	    },
-	    column, m, true);
+	    columnStays, m, true);
 	// The two passes now agree: where both saw a stem the same 2 cm voxel
 	// holds both (different sides and noise: a few % of the voxels here).
 	EXPECT_LT(layer.stats().stored_voxels, before_merge);
-	layer.startPass();
-	pass(-1, 300, e, true);
-	layer.correct(
-	    [&](double ts) {
-		    return ts < 300 ? shift({0, 0, 0}) : shift(-e);
-	    },
-	    column, m);
-	layer.finish(m);
-	ASSERT_EQ(m.trees().size(), stems.size());
-	EXPECT_LT(worstDbhError(stems, m.trees()), 0.01);
+	const auto trees = lastPassThenEnd(layer, m, rng, e);
+	ASSERT_EQ(trees.size(), stems.size());
+	EXPECT_LT(worstDbhError(stems, trees), 0.01);
 }
 
 TEST(TreeLayer, PassesMergedInStepsWhileTheNextPassComesIn)
 {
-	// As above, with the first merge in steps (a column per step) while
-	// the next pass is mapped: its points, in the corrected frame, must not
-	// move with the merge. The merge's correction is that of the last scan
-	// it knows for every later time too (as core::TimeIndex answers), so a
-	// merge that moved them would put the second pass 10 cm off.
-	const std::vector<Stem> stems = {{4, 5, 0.15},
-	                                 {9, -6, 0.2},
-	                                 {14, 4, 0.1},
-	                                 {27, 6, 0.25},
-	                                 {33, -5, 0.12}};
+	// Pass 0 drifted by d, taken back by a merge in steps (a column per
+	// step) while pass 1, right, is mapped: its points, in the corrected
+	// frame, must not move with the merge. The merge's correction is that
+	// of the last scan it knows for every later time too (as
+	// core::TimeIndex answers), so a merge that moved them would put pass
+	// 1 14 cm off. Pass 2 drifted by e, taken back at the end.
+	const std::vector<Stem>& stems = kPassStems;
 	const Eigen::Vector3f d(0.12, -0.08, 0.02), e(0.05, 0.03, 0);
-	TreeOptions o;
-	TreeLayer layer(o, 10.0);  // columns of 10 m: several steps
+	TreeLayer layer(TreeOptions{}, 10.0);  // columns of 10 m: several steps
 	map::CForestMap m;
 	std::mt19937 rng(5);
-	auto shift = [](const Eigen::Vector3f& v)
-	{
-		Eigen::Isometry3f T = Eigen::Isometry3f::Identity();
-		T.translation() = v;
-		return T;
-	};
-	const auto column = [](const ColumnKey&)
-	{ return Eigen::Isometry3d::Identity(); };
-	const auto first = [&](double) { return shift(-d); };
-	TreeLayer::CorrectionSteps steps;
-	size_t step_calls = 0;
-	auto pass = [&](double y, double t0, const Eigen::Vector3f& off, bool out)
-	{
-		double t = t0;
-		for (double i = 0; i <= 50; i += 1.0, t += 1.0)
-		{
-			const double x = out ? -5 + i : 45 - i;
-			const Eigen::Vector3d s(x, y, ground(x, y) + 1.5);
-			auto pts = scan(stems, s, rng);
-			for (auto& p : pts) p += off;
-			layer.addScan(pts, s + off.cast<double>(), t);
-			layer.update(s + off.cast<double>(), m);
-			if (steps.done()) continue;
-			step_calls++;
-			layer.correctStep(steps, first, column, m, 1);
-		}
-	};
-	pass(0, 100, d, true);
-	steps = layer.beginCorrection(true);
+	const auto back = [&](double) { return shiftBy(-d); };
+	drivePass(layer, m, rng, stems, 0, 100, d, true);
+	TreeLayer::CorrectionSteps steps = layer.beginCorrection(true);
 	ASSERT_GE(steps.keys.size(), 4u);
-	layer.correctStep(steps, first, column, m, 1);
+	layer.correctStep(steps, back, columnStays, m, 1);
 	EXPECT_FALSE(steps.done());
 	layer.startPass();
-	pass(1, 200, Eigen::Vector3f::Zero(), false);
+	size_t step_calls = 1;
+	drivePass(layer, m, rng, stems, 1, 200, Eigen::Vector3f::Zero(), false,
+	          [&]
+	          {
+		          if (steps.done()) return;
+		          step_calls++;
+		          layer.correctStep(steps, back, columnStays, m, 1);
+	          });
 	EXPECT_TRUE(steps.done());
-	EXPECT_GE(step_calls, steps.keys.size() - 1);
-	layer.startPass();
-	pass(-1, 300, e, true);
-	layer.correct(
-	    [&](double ts) {
-		    return ts < 300 ? shift({0, 0, 0}) : shift(-e);
-	    },
-	    column, m);
-	layer.finish(m);
-	ASSERT_EQ(m.trees().size(), stems.size());
-	EXPECT_LT(worstDbhError(stems, m.trees()), 0.01);
+	EXPECT_EQ(step_calls, steps.keys.size());  // one column per step
+	const auto trees = lastPassThenEnd(layer, m, rng, e);
+	ASSERT_EQ(trees.size(), stems.size());
+	EXPECT_LT(worstDbhError(stems, trees), 0.01);
 }
 
 // The store keeps a column's voxels sorted by cell (x, then y, then z; the
