@@ -38,7 +38,11 @@ struct MappingPipeline::TreeMerge
 	std::vector<Eigen::Vector2d> xy;  ///< their positions as mapped
 	// On the map worker only:
 	std::optional<trees::TreeLayer::CorrectionSteps> steps;
-	size_t step_jobs = 0;
+	/** Voxels the steps may still move (each step adds its share; a big
+	 * column takes it below zero). */
+	int64_t credit = 0;
+	size_t step_jobs = 0;  ///< steps that moved columns
+	double work_s = 0;     ///< their wall time
 	std::chrono::steady_clock::time_point started;
 	double rss0_mb = 0;
 	/** Set by the last step; read by the mapping thread, which stops
@@ -65,9 +69,12 @@ void MappingPipeline::initBackEnd()
 
 namespace
 {
-/** Stem-band voxels moved per mapped scan by an in-run merge of the tree
- * layer's passes (whole columns: at least one per step). */
-constexpr size_t kTreeMergeStepVoxels = 300000;
+/** Stem-band voxels moved per mapped scan, on average, by an in-run merge
+ * of the tree layer's passes: whole columns, so a step with a big one is
+ * followed by steps that do nothing until the credit is paid back (tens of
+ * ms per scan on the map thread; the 58-minute run's columns hold up to a
+ * few million voxels). */
+constexpr size_t kTreeMergeStepVoxels = 150000;
 
 double angleDeg(const Eigen::Matrix3d& R)
 {
@@ -475,6 +482,12 @@ void MappingPipeline::stepTreeMerge(size_t max_voxels)
 			    m->rss0_mb = core::currentRssMb();
 			    m->steps = tree_layer_->beginCorrection(true);
 		    }
+		    const bool all = max_voxels == std::numeric_limits<size_t>::max();
+		    if (!all)
+		    {
+			    m->credit += int64_t(max_voxels);
+			    if (m->credit <= 0) return;  // a big column paid back
+		    }
 		    const auto at_time = [&](double ts)
 		    { return m->C[m->clock.at(ts)]; };
 		    const double column_m = tree_layer_->columnSize();
@@ -484,17 +497,26 @@ void MappingPipeline::stepTreeMerge(size_t max_voxels)
 			        m->C[scanNearestColumn(m->xy, k, column_m)].cast<double>());
 		    };
 		    m->step_jobs++;
-		    if (!tree_layer_->correctStep(*m->steps, at_time, of_column, fm,
-		                                  max_voxels))
-			    return;
+		    const size_t moved0 = m->steps->moved_voxels;
+		    const auto t0 = std::chrono::steady_clock::now();
+		    const bool done =
+		        tree_layer_->correctStep(*m->steps, at_time, of_column, fm,
+		                                 all ? max_voxels : size_t(m->credit));
+		    m->credit -= int64_t(m->steps->moved_voxels - moved0);
+		    m->work_s += std::chrono::duration<double>(
+		                     std::chrono::steady_clock::now() - t0)
+		                     .count();
+		    if (!done) return;
 		    // Rare (a handful an hour): logged with the memory.
 		    FS_LOG_INFO("tree layer: passes merged during the run ("
-		                << m->steps->keys.size() << " columns in "
-		                << m->step_jobs << " steps) over "
+		                << m->steps->keys.size() << " columns, "
+		                << m->steps->moved_voxels << " voxels, in "
+		                << m->step_jobs << " steps: " << m->work_s
+		                << " s of work over "
 		                << std::chrono::duration<double>(
 		                       std::chrono::steady_clock::now() - m->started)
 		                       .count()
-		                << " s; RSS " << m->rss0_mb << " -> "
+		                << " s); RSS " << m->rss0_mb << " -> "
 		                << core::currentRssMb() << " MB");
 		    m->done = true;
 	    });

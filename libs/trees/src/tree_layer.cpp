@@ -1155,6 +1155,7 @@ bool TreeLayer::correctStep(
 			const ColumnKey k = keys[steps.next++];
 			running++, running_voxels += w;
 			taken_voxels += std::max<size_t>(w, 1);
+			steps.moved_voxels += std::max<size_t>(w, 1);
 			lock.unlock();
 			try
 			{

@@ -140,6 +140,8 @@ class TreeLayer
 		uint32_t last_pass = 0;       ///< passes merged: 0..last_pass
 		bool in_run = true;
 		size_t redetect = 0;  ///< columns whose passes disagreed so far
+		/** Stem-band voxels the steps so far took (1 for an empty column). */
+		size_t moved_voxels = 0;
 		bool done() const { return next >= keys.size(); }
 	};
 	CorrectionSteps beginCorrection(bool in_run) const;
