@@ -1125,7 +1125,6 @@ bool TreeLayer::correctStep(
 {
 	if (released_)
 		throw std::logic_error("TreeLayer::correct after releaseStemVoxels");
-	if (steps.done()) return true;
 	const auto started = std::chrono::steady_clock::now();
 	const CpuTally cpu(stats_.cpu_ms);
 	const double t0 = std::isfinite(t0_s_) ? t0_s_ : 0.0;
@@ -1136,14 +1135,16 @@ bool TreeLayer::correctStep(
 	// kTwoAtOnceVoxels; the spill file and the counts are shared (mtx).
 	// The step ends once its columns held max_voxels: taken in key order
 	// under the lock, so the same columns whatever the thread timing.
-	size_t running = 0, running_voxels = 0, taken_voxels = 0;
+	size_t running = 0, running_voxels = 0;
+	const size_t moved_before = steps.moved_voxels;
 	std::mutex mtx;
 	std::condition_variable freed;
 	std::exception_ptr error;
 	auto work = [&]
 	{
 		std::unique_lock<std::mutex> lock(mtx);
-		while (steps.next < keys.size() && taken_voxels < max_voxels && !error)
+		while (steps.next < keys.size() &&
+		       steps.moved_voxels - moved_before < max_voxels && !error)
 		{
 			Column& c = cols_.at(keys[steps.next]);
 			const size_t w = c.stem.size();
@@ -1154,7 +1155,6 @@ bool TreeLayer::correctStep(
 			}
 			const ColumnKey k = keys[steps.next++];
 			running++, running_voxels += w;
-			taken_voxels += std::max<size_t>(w, 1);
 			steps.moved_voxels += std::max<size_t>(w, 1);
 			lock.unlock();
 			try
