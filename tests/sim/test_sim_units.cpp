@@ -84,6 +84,10 @@ TEST(SimConfig, BadKeysAndValuesNameFileSectionKey)
 	expectConfigError("[output]\ngt_rate_hz = 50\n",
 	                  {"my.ini", "output", "gt_rate_hz"});
 	expectConfigError("[sim]\nnoise = maybe\n", {"my.ini", "sim", "noise"});
+	expectConfigError("[lidar]\nrange_noise_classes = stem, leaves\n",
+	                  {"my.ini", "lidar", "range_noise_classes", "shrub"});
+	EXPECT_NO_THROW(SimOptions::loadText(
+	    "[lidar]\nrange_noise_classes = ground, stem shrub\n", "my.ini"));
 	EXPECT_NO_THROW(
 	    SimOptions::loadText("[trees]\nstems_per_ha = 400\n", "my.ini"));
 }
@@ -450,6 +454,47 @@ TEST(SimLidar, AllModelsDecodeAndThreadsDoNotChangeTheScan)
 	LidarOptions lo = sc.options().lidar;
 	lo.gt_layers = false;
 	EXPECT_TRUE(LidarSimulator(sc.world(), sc.body(), lo, 1, 2).scan(3)->rangeOtherLayers.empty());
+}
+
+// range_noise_classes = stem: stem returns get the range noise, the others
+// are cast exactly as without noise (same rays, same dropouts).
+TEST(SimLidar, RangeNoiseOnTheNamedClassesOnly)
+{
+	const auto o = SimOptions::loadFile("ini/sim-tiny.ini");
+	const Scenario sc(o);
+	LidarOptions exact = sc.options().lidar, stems = exact;
+	exact.range_noise_m = 0;
+	stems.range_noise_classes = "stem";
+	EXPECT_EQ(stems.rangeNoiseMask(), 1u << kLabelStem);
+	int same = 0, stem_n = 0;
+	double stem_ss = 0;
+	for (size_t k : {40, 120, 200})
+	{
+		const auto a =
+		    LidarSimulator(sc.world(), sc.body(), exact, 7, 2).scan(k);
+		const auto b =
+		    LidarSimulator(sc.world(), sc.body(), stems, 7, 2).scan(k);
+		const auto& la = a->rangeOtherLayers.at("gt_label");
+		for (int r = 0; r < int(a->rowCount); r++)
+			for (int c = 0; c < int(a->columnCount); c++)
+			{
+				if (a->rangeImage(r, c) == 0 || b->rangeImage(r, c) == 0)
+					continue;
+				const double d = (double(b->rangeImage(r, c)) -
+				                  double(a->rangeImage(r, c))) *
+				                 a->rangeResolution;
+				if (la(r, c) == kLabelStem)
+					stem_ss += d * d, stem_n++;
+				else
+				{
+					ASSERT_EQ(d, 0.0) << "label " << la(r, c);
+					same++;
+				}
+			}
+	}
+	EXPECT_GT(same, 10000);
+	ASSERT_GT(stem_n, 200);
+	EXPECT_NEAR(std::sqrt(stem_ss / stem_n), stems.range_noise_m, 0.005);
 }
 
 TEST(SimLidar, ReturnsMatchTheWorldGeometry)

@@ -17,6 +17,7 @@ LidarSimulator::LidarSimulator(const World& world, const BodyTrajectory& body,
       o_(o),
       model_(core::lidarModelByName(o.model)),
       seed_(seed),
+      noise_mask_(o.rangeNoiseMask()),
       threads_(std::max(1, threads)),
       body_to_lidar_(o.mount.toIsometry())
 {
@@ -113,8 +114,11 @@ mrpt::obs::CObservationRotatingScan::Ptr LidarSimulator::scan(size_t k)
 				if (o_.dropout_probability > 0 &&
 				    hashUniform(key ^ 0x1111) < o_.dropout_probability)
 					continue;
-				const double range =
-				    hit.t + o_.range_noise_m * hashNormal(key ^ 0x2222);
+				const double noise =
+				    (noise_mask_ >> hit.label) & 1u
+				        ? o_.range_noise_m * hashNormal(key ^ 0x2222)
+				        : 0.0;
+				const double range = hit.t + noise;
 				if (range < min_range_ || range > max_range_) continue;
 				const long raw = std::lround(range / res);
 				if (raw <= 0 || raw > 65535) continue;

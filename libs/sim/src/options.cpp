@@ -1,8 +1,10 @@
 #include <forest_slam/core/lidar_model.h>
 #include <forest_slam/sim/options.h>
+#include <forest_slam/sim/world.h>
 
 #include <mrpt/config/CConfigFileMemory.h>
 
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 
@@ -367,6 +369,40 @@ void MotionOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
 	FS_SAVE(c, s, knot_spacing_s);
 }
 
+uint32_t LidarOptions::rangeNoiseMask() const
+{
+	static const std::pair<const char*, Label> kClasses[] = {
+	    {"ground", kLabelGround},
+	    {"stem", kLabelStem},
+	    {"crown", kLabelCrown},
+	    {"shrub", kLabelShrub},
+	    {"structure", kLabelStructure}};
+	uint32_t mask = 0;
+	std::string word;
+	auto take = [&]
+	{
+		if (word.empty()) return;
+		if (word == "all")
+			mask = ~0u;
+		else
+		{
+			bool known = false;
+			for (const auto& [name, label] : kClasses)
+				if (word == name) mask |= 1u << label, known = true;
+			if (!known)
+				throw std::invalid_argument("unknown return class '" + word +
+				                            "'");
+		}
+		word.clear();
+	};
+	for (const char ch : range_noise_classes + " ")
+		if (ch == ',' || std::isspace(static_cast<unsigned char>(ch)))
+			take();
+		else
+			word += ch;
+	return mask;
+}
+
 void LidarOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
                                       const std::string& s)
 {
@@ -378,6 +414,7 @@ void LidarOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 	FS_LOAD(c, s, max_range_m);
 	FS_LOAD(c, s, range_resolution_m);
 	FS_LOAD(c, s, range_noise_m);
+	FS_LOAD(c, s, range_noise_classes);
 	FS_LOAD(c, s, dropout_probability);
 	FS_LOAD(c, s, intensity_noise);
 	FS_LOAD(c, s, gt_layers);
@@ -394,6 +431,7 @@ void LidarOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
 	FS_SAVE(c, s, max_range_m);
 	FS_SAVE(c, s, range_resolution_m);
 	FS_SAVE(c, s, range_noise_m);
+	FS_SAVE(c, s, range_noise_classes);
 	FS_SAVE(c, s, dropout_probability);
 	FS_SAVE(c, s, intensity_noise);
 	FS_SAVE(c, s, gt_layers);
@@ -661,6 +699,19 @@ void SimOptions::validate(const std::string& origin) const
 		      "range_resolution_m", "max range / resolution < 65535 (uint16)");
 	}
 	check(lidar.range_noise_m >= 0, "lidar", "range_noise_m", ">= 0");
+	{
+		bool classes_ok = true;
+		try
+		{
+			lidar.rangeNoiseMask();
+		}
+		catch (const std::invalid_argument&)
+		{
+			classes_ok = false;
+		}
+		check(classes_ok, "lidar", "range_noise_classes",
+		      "all, or a list of ground, stem, crown, shrub, structure");
+	}
 	check(lidar.dropout_probability >= 0 && lidar.dropout_probability <= 1,
 	      "lidar", "dropout_probability", "0..1");
 	check(lidar.intensity_noise >= 0, "lidar", "intensity_noise", ">= 0");

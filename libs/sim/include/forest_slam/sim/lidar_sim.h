@@ -45,6 +45,7 @@ class LidarSimulator
 	LidarOptions o_;
 	const core::LidarModel& model_;
 	uint64_t seed_;
+	uint32_t noise_mask_;  ///< LidarOptions::rangeNoiseMask()
 	int threads_;
 	Eigen::Isometry3d body_to_lidar_;  ///< lidar -> body
 	double t0_, period_, sweep_, start_az_, span_;

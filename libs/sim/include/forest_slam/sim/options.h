@@ -205,6 +205,13 @@ struct LidarOptions : public mrpt::config::CLoadableOptions
 	double min_range_m = 0, max_range_m = 0;  ///< 0: model default
 	double range_resolution_m = 0.002;
 	double range_noise_m = 0.025;
+	/** Classes whose returns get the range noise: "all", or a list of
+	 * ground, stem, crown, shrub, structure (comma or space separated):
+	 * to find which surfaces' noise an effect comes from. */
+	std::string range_noise_classes = "all";
+	/** Bit (1 << Label) set for each class of range_noise_classes; throws
+	 * std::invalid_argument naming an unknown class. */
+	uint32_t rangeNoiseMask() const;
 	double dropout_probability = 0.005;
 	double intensity_noise = 2.0;
 	bool gt_layers = true;  ///< "gt_label" / "gt_tree" range layers
