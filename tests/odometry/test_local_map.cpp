@@ -47,6 +47,7 @@ LocalMapOptions stemOptions(bool stem_model)
 	// that close are fine.
 	o.min_plane_spread_m = 0.005;
 	o.stem_model = stem_model;
+	o.stem_model_planar = stem_model;  // planar matches exercise the circle
 	return o;
 }
 
@@ -80,6 +81,31 @@ TEST(LocalMap, StemModelMatchesTheSurfaceBeyondTheSeenArc)
 	}
 	EXPECT_GT(err[0], 0.005) << "plane through the nearest points";
 	EXPECT_LT(err[1], 0.001) << "stem circle";
+}
+
+// With stem_model_planar off (the default) a planar point keeps the plane
+// through the nearest map points even on a stem; an edge on the same stem
+// still gets the circle's radial row.
+TEST(LocalMap, StemModelForPlanarMatchesIsOptional)
+{
+	const Eigen::Vector2d c(5, 0);
+	const double r = 0.15;
+	const auto side = arc(c, r, 120, 240);
+	LocalMapOptions o = stemOptions(true);
+	o.stem_model_planar = false;
+	EXPECT_FALSE(LocalMapOptions().stem_model_planar);
+	LocalMap map(o);
+	map.insert(side, side);
+	RegistrationOptions ro;
+	PlaneRow row, a, b;
+	MatchReach reach;
+	const Eigen::Vector3f x = onStem(c, r, 260, 1.2);
+	ASSERT_TRUE(map.matchPlane(x, 0.3, ro, row, reach));
+	EXPECT_GT(std::abs(residual(row, x)), 0.005) << "plane, not the circle";
+	const Eigen::Vector3f e = onStem(c, r + 0.01, 240, 1.0);
+	ASSERT_TRUE(map.matchLine(e, 0.3, ro, a, b, reach));
+	EXPECT_NEAR(residual(a, e), 0.01, 0.001) << "the circle's radial row";
+	EXPECT_EQ(b.n.norm(), 0.0);
 }
 
 // An edge (silhouette) on a stem gives one row, the distance to the stem's

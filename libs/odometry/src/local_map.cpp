@@ -35,6 +35,7 @@ void LocalMapOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 	FS_LOAD(c, s, min_points_per_plane);
 	FS_LOAD(c, s, radius_m);
 	FS_LOAD(c, s, stem_model);
+	FS_LOAD(c, s, stem_model_planar);
 	FS_LOAD(c, s, stem_fit_radius_m);
 	FS_LOAD(c, s, stem_fit_half_height_m);
 	FS_LOAD(c, s, stem_min_points);
@@ -80,6 +81,7 @@ void LocalMapOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
 	c.write(s, "min_points_per_plane", min_points_per_plane);
 	c.write(s, "radius_m", radius_m);
 	c.write(s, "stem_model", stem_model);
+	c.write(s, "stem_model_planar", stem_model_planar);
 	c.write(s, "stem_fit_radius_m", stem_fit_radius_m);
 	c.write(s, "stem_fit_half_height_m", stem_fit_half_height_m);
 	c.write(s, "stem_min_points", stem_min_points);
@@ -653,8 +655,8 @@ bool LocalMap::matchPlane(const Eigen::Vector3f& x, double gate,
 			out.n = s.vecs.col(0).normalized();
 			out.d = -out.n.dot(best.front().second.cast<double>());
 			reach.gate_needed = std::sqrt(best.front().first);
-			if (o_.stem_model && std::abs(out.n.z()) < 0.5 &&
-			    stemRow(x, gate, out, reach))
+			if (o_.stem_model && o_.stem_model_planar &&
+			    std::abs(out.n.z()) < 0.5 && stemRow(x, gate, out, reach))
 				return true;
 			const double e = std::abs(out.n.dot(x.cast<double>()) + out.d);
 			if (e <= gate)

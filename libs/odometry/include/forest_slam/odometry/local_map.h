@@ -47,6 +47,11 @@ struct LocalMapOptions : public mrpt::config::CLoadableOptions
 	 * through the nearest map points lies on the part of the stem seen from
 	 * earlier views (silhouettes move round a stem with the view). */
 	bool stem_model = true;
+	/** Planar matches go to the stem's circle too, not only edges. Off: a
+	 * planar point on a stem keeps its plane. With range noise on the
+	 * stems, the circle's planar rows shortened the forest-sim maps
+	 * (doc/odometry.md, "Range noise on stems"). */
+	bool stem_model_planar = false;
 	double stem_fit_radius_m = 0.5;       ///< map points within (xy) [m]
 	double stem_fit_half_height_m = 0.3;  ///< and within this in z [m]
 	int stem_min_points = 12;             ///< inliers of the fit
