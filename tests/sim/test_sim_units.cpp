@@ -466,6 +466,11 @@ TEST(SimLidar, RangeNoiseOnTheNamedClassesOnly)
 	exact.range_noise_m = 0;
 	stems.range_noise_classes = "stem";
 	EXPECT_EQ(stems.rangeNoiseMask(), 1u << kLabelStem);
+	LidarOptions bad;
+	bad.range_noise_classes = "stem leaves";
+	EXPECT_FALSE(bad.rangeNoiseMask().has_value());
+	EXPECT_THROW(LidarSimulator(sc.world(), sc.body(), bad, 7, 1),
+	             std::invalid_argument);
 	int same = 0, stem_n = 0;
 	double stem_ss = 0;
 	for (size_t k : {40, 120, 200})

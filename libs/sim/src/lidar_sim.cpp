@@ -5,10 +5,22 @@
 
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
 #include <thread>
 
 namespace forest_slam::sim
 {
+namespace
+{
+uint32_t noiseMask(const LidarOptions& o)
+{
+	if (const auto m = o.rangeNoiseMask()) return *m;
+	throw std::invalid_argument(
+	    "[lidar] range_noise_classes = '" + o.range_noise_classes +
+	    "': expected all, or a list of ground, stem, crown, shrub, structure");
+}
+}  // namespace
+
 LidarSimulator::LidarSimulator(const World& world, const BodyTrajectory& body,
                                const LidarOptions& o, uint64_t seed,
                                int threads)
@@ -17,7 +29,7 @@ LidarSimulator::LidarSimulator(const World& world, const BodyTrajectory& body,
       o_(o),
       model_(core::lidarModelByName(o.model)),
       seed_(seed),
-      noise_mask_(o.rangeNoiseMask()),
+      noise_mask_(noiseMask(o)),
       threads_(std::max(1, threads)),
       body_to_lidar_(o.mount.toIsometry())
 {

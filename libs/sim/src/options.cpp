@@ -369,7 +369,7 @@ void MotionOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
 	FS_SAVE(c, s, knot_spacing_s);
 }
 
-uint32_t LidarOptions::rangeNoiseMask() const
+std::optional<uint32_t> LidarOptions::rangeNoiseMask() const
 {
 	static const std::pair<const char*, Label> kClasses[] = {
 	    {"ground", kLabelGround},
@@ -378,21 +378,16 @@ uint32_t LidarOptions::rangeNoiseMask() const
 	    {"shrub", kLabelShrub},
 	    {"structure", kLabelStructure}};
 	uint32_t mask = 0;
+	bool known = true;
 	std::string word;
 	auto take = [&]
 	{
 		if (word.empty()) return;
-		if (word == "all")
-			mask = ~0u;
-		else
-		{
-			bool known = false;
-			for (const auto& [name, label] : kClasses)
-				if (word == name) mask |= 1u << label, known = true;
-			if (!known)
-				throw std::invalid_argument("unknown return class '" + word +
-				                            "'");
-		}
+		bool found = word == "all";
+		if (found) mask = ~0u;
+		for (const auto& [name, label] : kClasses)
+			if (word == name) mask |= 1u << label, found = true;
+		known = known && found;
 		word.clear();
 	};
 	for (const char ch : range_noise_classes + " ")
@@ -400,6 +395,7 @@ uint32_t LidarOptions::rangeNoiseMask() const
 			take();
 		else
 			word += ch;
+	if (!known) return std::nullopt;
 	return mask;
 }
 
@@ -699,19 +695,8 @@ void SimOptions::validate(const std::string& origin) const
 		      "range_resolution_m", "max range / resolution < 65535 (uint16)");
 	}
 	check(lidar.range_noise_m >= 0, "lidar", "range_noise_m", ">= 0");
-	{
-		bool classes_ok = true;
-		try
-		{
-			lidar.rangeNoiseMask();
-		}
-		catch (const std::invalid_argument&)
-		{
-			classes_ok = false;
-		}
-		check(classes_ok, "lidar", "range_noise_classes",
-		      "all, or a list of ground, stem, crown, shrub, structure");
-	}
+	check(lidar.rangeNoiseMask().has_value(), "lidar", "range_noise_classes",
+	      "all, or a list of ground, stem, crown, shrub, structure");
 	check(lidar.dropout_probability >= 0 && lidar.dropout_probability <= 1,
 	      "lidar", "dropout_probability", "0..1");
 	check(lidar.intensity_noise >= 0, "lidar", "intensity_noise", ">= 0");

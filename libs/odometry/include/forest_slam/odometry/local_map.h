@@ -40,8 +40,9 @@ struct LocalMapOptions : public mrpt::config::CLoadableOptions
 	int max_points_per_voxel = 800;
 	int min_points_per_plane = 10;
 	double radius_m = 60.0;  ///< cells farther from the sensor are dropped
-	/** Stem model: a planar point on a vertical surface, or an edge on a
-	 * vertical line, is matched to the circle (a vertical cylinder with a
+	/** Stem model: an edge on a vertical line (and, with
+	 * stem_model_planar, a planar point on a vertical surface) is matched
+	 * to the circle (a vertical cylinder with a
 	 * lean) fitted to the map's points around it, when that fits a stem:
 	 * the residual is the distance to the stem's surface. A plane or line
 	 * through the nearest map points lies on the part of the stem seen from

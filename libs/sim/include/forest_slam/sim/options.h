@@ -9,6 +9,7 @@
 #include <Eigen/Geometry>
 
 #include <cstdint>
+#include <optional>
 #include <string>
 
 namespace forest_slam::sim
@@ -209,9 +210,9 @@ struct LidarOptions : public mrpt::config::CLoadableOptions
 	 * ground, stem, crown, shrub, structure (comma or space separated):
 	 * to find which surfaces' noise an effect comes from. */
 	std::string range_noise_classes = "all";
-	/** Bit (1 << Label) set for each class of range_noise_classes; throws
-	 * std::invalid_argument naming an unknown class. */
-	uint32_t rangeNoiseMask() const;
+	/** Bit (1 << Label) set for each class of range_noise_classes; none
+	 * if a class is unknown. */
+	std::optional<uint32_t> rangeNoiseMask() const;
 	double dropout_probability = 0.005;
 	double intensity_noise = 2.0;
 	bool gt_layers = true;  ///< "gt_label" / "gt_tree" range layers
