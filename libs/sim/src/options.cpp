@@ -3,8 +3,8 @@
 #include <forest_slam/sim/world.h>
 
 #include <mrpt/config/CConfigFileMemory.h>
+#include <mrpt/system/string_utils.h>
 
-#include <cctype>
 #include <cmath>
 #include <cstdio>
 
@@ -377,25 +377,17 @@ std::optional<uint32_t> LidarOptions::rangeNoiseMask() const
 	    {"crown", kLabelCrown},
 	    {"shrub", kLabelShrub},
 	    {"structure", kLabelStructure}};
+	std::vector<std::string> words;
+	mrpt::system::tokenize(range_noise_classes, ", \t", words);
 	uint32_t mask = 0;
-	bool known = true;
-	std::string word;
-	auto take = [&]
+	for (const auto& word : words)
 	{
-		if (word.empty()) return;
 		bool found = word == "all";
 		if (found) mask = ~0u;
 		for (const auto& [name, label] : kClasses)
 			if (word == name) mask |= 1u << label, found = true;
-		known = known && found;
-		word.clear();
-	};
-	for (const char ch : range_noise_classes + " ")
-		if (ch == ',' || std::isspace(static_cast<unsigned char>(ch)))
-			take();
-		else
-			word += ch;
-	if (!known) return std::nullopt;
+		if (!found) return std::nullopt;
+	}
 	return mask;
 }
 
