@@ -36,6 +36,32 @@ TEST(Icp, RecoversAnOffsetBetweenTwoViews)
 	EXPECT_LT(r.rmse_m, 0.03);
 }
 
+TEST(Icp, AWellSeededAlignmentSkipsTheShrinkingGates)
+{
+	// Seeded at the truth, the pose does not move at the first (widest)
+	// gate: the alignment goes to the final gate at once and stops there,
+	// instead of stepping through the 25 shrinking gates.
+	const auto stems = makeStems(3, 40);
+	const auto A = poseXYZYaw(0, 0, 1.5, 0);
+	const auto B = poseXYZYaw(3.0, 1.0, 1.6, 25);
+	const auto ca = voxelFilter(sampleView(stems, A, 20, 0.1, 1), 0.25, 40);
+	const auto cb = voxelFilter(sampleView(stems, B, 20, 0.1, 2), 0.25, 40);
+	IcpTarget target(withNormals(ca));
+	const Eigen::Isometry3d truth = A.inverse() * B;
+	IcpOptions o;
+	const IcpResult seeded = target.align(cb, truth, o);
+	EXPECT_TRUE(seeded.converged);
+	EXPECT_LE(seeded.iterations, 6);
+	const Eigen::Isometry3d e = truth.inverse() * seeded.T;
+	EXPECT_LT(e.translation().norm(), 0.03);
+	// Seeded 0.8 m off, it still shrinks the gate on the way in.
+	const IcpResult off =
+	    target.align(cb, poseXYZYaw(0.5, -0.5, 0.3, 3) * truth, o);
+	EXPECT_TRUE(off.converged);
+	EXPECT_GT(off.iterations, seeded.iterations);
+	EXPECT_LT((truth.inverse() * off.T).translation().norm(), 0.03);
+}
+
 TEST(Icp, VoxelFilterKeepsOnePointPerVoxelWithinRange)
 {
 	std::vector<Eigen::Vector3f> p{{0.01f, 0.01f, 0.01f},

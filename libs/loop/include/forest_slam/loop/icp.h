@@ -33,6 +33,7 @@ struct IcpResult
 	Eigen::Matrix<double, 6, 1> information_eigenvalues =
 	    Eigen::Matrix<double, 6, 1>::Zero();
 	bool converged = false;
+	int iterations = 0;  ///< Gauss-Newton steps taken (align())
 };
 
 /** A target cloud with its search index, reused for several ICP runs. */
