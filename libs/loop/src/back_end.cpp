@@ -1,5 +1,6 @@
 #include <forest_slam/core/log.h>
 #include <forest_slam/loop/back_end.h>
+#include <forest_slam/loop/levelling.h>
 
 #include <algorithm>
 #include <chrono>
@@ -293,6 +294,31 @@ void BackEnd::finish()
 		if (worker_.joinable()) worker_.join();
 	}
 	if (stats_.closures > 0 || !graph_.gnss().empty()) optimise();
+	if (o_.level_with_imu && !graph_.hasEnu()) level();
+}
+
+void BackEnd::level()
+{
+	std::vector<Eigen::Matrix3d> R;
+	std::vector<std::optional<Eigen::Vector3d>> up;
+	for (size_t i = 0; i < graph_.size() && i < kfs_.size(); i++)
+	{
+		R.push_back(graph_.pose(i).linear());
+		up.push_back(kfs_[i].up);
+	}
+	const Levelling L = estimateLevelling(R, up);
+	if (!L.ok) return;
+	// A rotation about the map origin (the first lidar position): every
+	// keyframe moves with it, and the pipeline's final correction takes
+	// the maps along.
+	Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+	T.linear() = L.R;
+	for (size_t i = 0; i < graph_.size(); i++)
+		graph_.setPose(i, T * graph_.pose(i));
+	stats_.levelled = true;
+	stats_.levelling_deg = L.tilt_deg;
+	stats_.levelling_rms_deg = L.residual_rms_deg;
+	stats_.levelling_keyframes = L.used;
 }
 
 Poses BackEnd::poses() const

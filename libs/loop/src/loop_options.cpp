@@ -48,6 +48,7 @@ namespace forest_slam::loop
 	X(gnss_gate_sigma)           \
 	X(gnss_min_baseline_m)       \
 	X(gnss_correlation_s)        \
+	X(level_with_imu)            \
 	X(inject_yaw_deg_per_m)      \
 	X(inject_z_m_per_m)          \
 	X(inject_every_m)

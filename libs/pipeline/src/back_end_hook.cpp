@@ -150,6 +150,10 @@ void MappingPipeline::backEndScan(const PendingScan& s, core::StampedPose& pose)
 		{
 			m.imu = &imu_buffer_;
 			m.R_body_lidar = s.sensor_pose.getRotationMatrix().asEigen();
+			Eigen::Quaterniond att;
+			if (imu_buffer_.attitudeAt(pose.t_s, att))
+				kf.up = m.R_body_lidar.transpose() *
+				        (att.conjugate() * Eigen::Vector3d::UnitZ());
 		}
 		std::vector<Eigen::Vector3f> pts;
 		for (const auto& p : odometry::deskewScan(s.pts, m))
@@ -315,7 +319,8 @@ void MappingPipeline::finishBackEnd()
 	}
 	// Dense map and CForestMap: unchanged (bit for bit) when nothing was
 	// optimised.
-	if (backend_->stats().optimisations > 0 && !mapped.empty())
+	if ((backend_->stats().optimisations > 0 || backend_->stats().levelled) &&
+	    !mapped.empty())
 	{
 		const auto t0 = std::chrono::steady_clock::now();
 		const size_t segments = map_.segmentCount();
@@ -335,7 +340,9 @@ void MappingPipeline::finishBackEnd()
 		    << " voxels once merged; " << map_merges_
 		    << " merges during the run) in " << S(t2 - t1).count() << " s");
 	}
-	if (tree_layer_ && backend_->stats().optimisations > 0 && !mapped.empty())
+	if (tree_layer_ &&
+	    (backend_->stats().optimisations > 0 || backend_->stats().levelled) &&
+	    !mapped.empty())
 		correctTreeLayer(mapped);
 	const auto st = backend_->stats();
 	FS_LOG_INFO("back-end: " << st.keyframes << " keyframes, " << st.candidates
@@ -343,6 +350,11 @@ void MappingPipeline::finishBackEnd()
 	                         << " closures, " << st.optimisations
 	                         << " optimisations, GNSS " << st.gnss_fixes
 	                         << " fixes (" << st.gnss_outliers << " outliers)");
+	if (st.levelled)
+		FS_LOG_INFO("back-end: map levelled with gravity by "
+		            << st.levelling_deg << " deg (IMU up at "
+		            << st.levelling_keyframes << " keyframes, residual RMS "
+		            << st.levelling_rms_deg << " deg)");
 }
 
 namespace

@@ -148,7 +148,11 @@ std::string loopJson(const loop::BackEnd* b,
 	   << ", \"verify_ms\": " << st.verify_ms
 	   << ", \"optimise_ms\": " << st.optimise_ms
 	   << ", \"wait_ms\": " << st.wait_ms
-	   << ", \"worker_cpu_ms\": " << st.worker_cpu_ms;
+	   << ", \"worker_cpu_ms\": " << st.worker_cpu_ms
+	   << ", \"levelled\": " << (st.levelled ? "true" : "false")
+	   << ", \"levelling_deg\": " << st.levelling_deg
+	   << ", \"levelling_rms_deg\": " << st.levelling_rms_deg
+	   << ", \"levelling_keyframes\": " << st.levelling_keyframes;
 	if (const auto e = b->mapToEnu())
 	{
 		os << ", \"map_to_enu\": {\"yaw_deg\": " << e->yaw * 180 / M_PI

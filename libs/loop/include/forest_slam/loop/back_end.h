@@ -46,6 +46,12 @@ struct BackEndStats
 	/** CPU time of the worker thread (threaded back-end; 0 inline): what
 	 * the back-end costs the machine, whatever the load. */
 	double worker_cpu_ms = 0;
+	/** The map frame levelled with gravity at the end (levelling.h): the
+	 * final poses include the rotation. */
+	bool levelled = false;
+	double levelling_deg = 0;      ///< tilt removed
+	double levelling_rms_deg = 0;  ///< residual of the keyframes' "up"
+	size_t levelling_keyframes = 0;
 };
 
 class BackEnd
@@ -93,6 +99,7 @@ class BackEnd
 	void process(Item& it);
 	void processKeyframe(Keyframe& kf);
 	bool optimise();
+	void level();
 
 	LoopOptions o_;
 	bool threaded_;

@@ -22,6 +22,7 @@
 #include <forest_slam/loop/place_descriptor.h>
 
 #include <Eigen/Geometry>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -35,6 +36,9 @@ struct Keyframe
 	/** Odometry pose relative to the previous keyframe (identity first). */
 	Eigen::Isometry3d odom_edge = Eigen::Isometry3d::Identity();
 	std::vector<Eigen::Vector3f> cloud;  ///< keyframe sensor frame
+	/** Gravity's "up" in the keyframe frame from the IMU attitude filter
+	 * (none without IMU): levels the map at the end (levelling.h). */
+	std::optional<Eigen::Vector3d> up;
 	EIGEN_MAKE_ALIGNED_OPERATOR_NEW
 };
 

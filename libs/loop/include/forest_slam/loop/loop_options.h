@@ -80,6 +80,10 @@ struct LoopOptions : public mrpt::config::CLoadableOptions
 	/** Time constant of the GNSS error [s] (0: white): fixes closer in time
 	 * than ~2x this are not independent; their sigmas are inflated. */
 	double gnss_correlation_s = 20.0;
+	/** At the end of the run, level the map frame with gravity from the
+	 * IMU's "up" at every keyframe (levelling.h); not with GNSS (its ENU
+	 * frame is levelled already). */
+	bool level_with_imu = true;
 	// Test bench: odometry drift injected into the odometry (0 = off).
 	double inject_yaw_deg_per_m = 0;
 	double inject_z_m_per_m = 0;
