@@ -110,6 +110,15 @@ AccelIntegral ImuBuffer::integrateAcceleration(
 	return out;
 }
 
+std::optional<Eigen::Vector3d> ImuBuffer::upAt(
+    double t_s, const Eigen::Matrix3d& R_body_sensor) const
+{
+	Eigen::Quaterniond att;
+	if (!attitudeAt(t_s, att)) return std::nullopt;
+	return R_body_sensor.transpose() *
+	       (att.conjugate() * Eigen::Vector3d::UnitZ());
+}
+
 bool ImuBuffer::attitudeAt(double t_s, Eigen::Quaterniond& q) const
 {
 	if (samples_.empty() || !filter_.initialised()) return false;

@@ -329,16 +329,12 @@ OdometryStep LidarOdometry::processScan(const core::ScanPoints& scan)
 			motion.gravity_body = R_mb_now.transpose() * gravityInMap();
 		}
 	}
-	Eigen::Vector3d up;
 	RegistrationPriors priors;
 	priors.motion = &predicted;
-	Eigen::Quaterniond att;
-	if (use_imu && imu_->attitudeAt(stamp, att))
-	{
-		up = R_body_lidar_.transpose() *
-		     (att.conjugate() * Eigen::Vector3d::UnitZ());
-		priors.up_in_source = &up;
-	}
+	const std::optional<Eigen::Vector3d> up =
+	    use_imu ? imu_->upAt(stamp, R_body_lidar_) : std::nullopt;
+	if (up)
+		priors.up_in_source = &*up;
 	else if (imu_ && cfg_.odometry.use_imu && scans_ > 0)
 		core::logOnce(
 		    core::LogLevel::Warn, "odometry-imu-gap",

@@ -150,10 +150,7 @@ void MappingPipeline::backEndScan(const PendingScan& s, core::StampedPose& pose)
 		{
 			m.imu = &imu_buffer_;
 			m.R_body_lidar = s.sensor_pose.getRotationMatrix().asEigen();
-			Eigen::Quaterniond att;
-			if (imu_buffer_.attitudeAt(pose.t_s, att))
-				kf.up = m.R_body_lidar.transpose() *
-				        (att.conjugate() * Eigen::Vector3d::UnitZ());
+			kf.up = imu_buffer_.upAt(pose.t_s, m.R_body_lidar);
 		}
 		std::vector<Eigen::Vector3f> pts;
 		for (const auto& p : odometry::deskewScan(s.pts, m))
@@ -317,10 +314,12 @@ void MappingPipeline::finishBackEnd()
 		if (core::interpolatePose(trajectory_, kfs[i].t_s, T, 1e-6))
 			outputs_.setKeyframePose(i, T);
 	}
-	// Dense map and CForestMap: unchanged (bit for bit) when nothing was
-	// optimised.
-	if ((backend_->stats().optimisations > 0 || backend_->stats().levelled) &&
-	    !mapped.empty())
+	// Dense map, CForestMap and tree layer: unchanged (bit for bit) when
+	// nothing was optimised or levelled.
+	const bool moved =
+	    (backend_->stats().optimisations > 0 || backend_->stats().levelled) &&
+	    !mapped.empty();
+	if (moved)
 	{
 		const auto t0 = std::chrono::steady_clock::now();
 		const size_t segments = map_.segmentCount();
@@ -340,10 +339,7 @@ void MappingPipeline::finishBackEnd()
 		    << " voxels once merged; " << map_merges_
 		    << " merges during the run) in " << S(t2 - t1).count() << " s");
 	}
-	if (tree_layer_ &&
-	    (backend_->stats().optimisations > 0 || backend_->stats().levelled) &&
-	    !mapped.empty())
-		correctTreeLayer(mapped);
+	if (tree_layer_ && moved) correctTreeLayer(mapped);
 	const auto st = backend_->stats();
 	FS_LOG_INFO("back-end: " << st.keyframes << " keyframes, " << st.candidates
 	                         << " loop candidates, " << st.closures

@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <deque>
 #include <iterator>
+#include <optional>
 #include <string>
 
 namespace forest_slam::imu
@@ -74,6 +75,10 @@ class ImuBuffer
 	 * and meaningless. False for 2/kp seconds (at most 2 s) after a gap in
 	 * the samples, while the filter settles. */
 	bool attitudeAt(double t_s, Eigen::Quaterniond& q) const;
+	/** Gravity's "up" in a sensor frame mounted with R_body_sensor on the
+	 * body, from attitudeAt(t) (none when that is false). */
+	std::optional<Eigen::Vector3d> upAt(
+	    double t_s, const Eigen::Matrix3d& R_body_sensor) const;
 	const AttitudeFilter& filter() const { return filter_; }
 
 	/** Drops samples older than t (keeps one at or before t). */
