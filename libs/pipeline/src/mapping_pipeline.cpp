@@ -381,14 +381,15 @@ void MappingPipeline::runOdometry(PendingScan& s)
 		// The map frame: levelled with the IMU attitude filter at the first
 		// scan (mean of its first samples) when there is one, else with the
 		// gravity seen before the first scan.
-		Eigen::Quaterniond att;
-		if (cfg_.odometry.odometry.use_imu &&
-		    imu_buffer_.attitudeAt(s.pts.stamp_s, att))
+		const std::optional<Eigen::Vector3d> up_body =
+		    cfg_.odometry.odometry.use_imu
+		        ? imu_buffer_.upAt(s.pts.stamp_s, Eigen::Matrix3d::Identity())
+		        : std::nullopt;
+		if (up_body)
 		{
 			Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
 			T.linear() = levelledOrientation(
-			    att.conjugate() * Eigen::Vector3d::UnitZ(),
-			    s.sensor_pose.getRotationMatrix().asEigen());
+			    *up_body, s.sensor_pose.getRotationMatrix().asEigen());
 			static_pose_ = T;
 			odometry_->setInitialPose(T);
 		}
