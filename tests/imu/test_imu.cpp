@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <memory>
 #include <random>
 
 using namespace forest_slam;
@@ -59,6 +60,60 @@ TEST(Imu, AttitudeLevelsWithGravityAndLearnsTheGyroBias)
 	// Roll and pitch bias components are observable from gravity.
 	EXPECT_NEAR(b.filter().gyroBias().x(), s.bias.x(), 3e-3);
 	EXPECT_NEAR(b.filter().gyroBias().y(), s.bias.y(), 3e-3);
+}
+
+TEST(Imu, AStartAtRestGivesTheGyroBiasYawIncluded)
+{
+	// 2 s at rest, tilted, then spinning: the mean gyro at rest is the
+	// bias, yaw's too (gravity gives roll and pitch only).
+	const auto run = [](bool standstill_bias)
+	{
+		imu::AttitudeOptions o;
+		o.standstill_bias = standstill_bias;
+		auto b = std::make_unique<imu::ImuBuffer>(o);
+		SpinningImu s;
+		s.w = 0;
+		s.fill(*b, 0.0, 2.0);
+		EXPECT_EQ(b->filter().atRestSinceStart(), standstill_bias);
+		return b;
+	};
+	const SpinningImu truth;
+	auto b = run(true);
+	EXPECT_NEAR(b->filter().gyroBias().z(), truth.bias.z(), 3e-4);
+	EXPECT_LT((b->filter().gyroBias() - truth.bias).norm(), 5e-4);
+	// Without it the yaw bias stays unknown.
+	EXPECT_GT(std::abs(run(false)->filter().gyroBias().z() - truth.bias.z()),
+	          4e-3);
+	// Then the rig turns: the estimate stays, and a second of spin is
+	// integrated within a tenth of the bias' effect.
+	SpinningImu spin;
+	spin.w = 0.5;
+	for (double t = 2.005; t <= 4.0 + 1e-9; t += 0.005)
+	{
+		const Eigen::Vector3d gyro = Eigen::Vector3d(0, 0, spin.w) + spin.bias;
+		const Eigen::Matrix3d R_wb =
+		    Eigen::AngleAxisd(spin.tilt, Eigen::Vector3d::UnitX()) *
+		    Eigen::AngleAxisd(spin.w * (t - 2.0), Eigen::Vector3d::UnitZ())
+		        .toRotationMatrix();
+		ASSERT_TRUE(
+		    b->add(t, gyro, R_wb.transpose() * Eigen::Vector3d(0, 0, 9.80665)));
+	}
+	EXPECT_FALSE(b->filter().atRestSinceStart());
+	EXPECT_NEAR(b->filter().gyroBias().z(), truth.bias.z(), 5e-4);
+	EXPECT_NEAR(Eigen::AngleAxisd(b->rotationBetween(2.5, 3.5)).angle(), 0.5,
+	            0.1 * truth.bias.z());
+}
+
+TEST(Imu, ASlowTurnFromTheStartIsNotTakenForABias)
+{
+	// 5 deg/s about z from the first sample: steady, but beyond
+	// standstill_max_bias_deg_s.
+	imu::ImuBuffer b;
+	SpinningImu s;
+	s.w = 5 * M_PI / 180;
+	s.bias.setZero();
+	s.fill(b, 0.0, 0.5, 0.0, 0.0);
+	EXPECT_LT(b.filter().gyroBias().norm(), 1e-4);
 }
 
 TEST(Imu, RotationBetweenIntegratesTheGyro)

@@ -14,6 +14,10 @@ void AttitudeOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 	FS_LOAD(c, s, accel_lowpass_s);
 	FS_LOAD(c, s, gravity);
 	FS_LOAD(c, s, init_samples);
+	FS_LOAD(c, s, standstill_bias);
+	FS_LOAD(c, s, standstill_gyro_deg_s);
+	FS_LOAD(c, s, standstill_accel_mps2);
+	FS_LOAD(c, s, standstill_max_bias_deg_s);
 	const std::string where = core::configOrigin(c) + ": [" + s + "] ";
 	if (!(kp >= 0) || !(ki >= 0))
 		throw core::ConfigError(where + "kp and ki must be >= 0");
@@ -24,6 +28,12 @@ void AttitudeOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 		                        "accel_tolerance and gravity must be > 0");
 	if (init_samples < 1)
 		throw core::ConfigError(where + "init_samples must be >= 1");
+	if (!(standstill_gyro_deg_s > 0) || !(standstill_accel_mps2 > 0) ||
+	    !(standstill_max_bias_deg_s >= 0))
+		throw core::ConfigError(where +
+		                        "standstill_gyro_deg_s and "
+		                        "standstill_accel_mps2 must be > 0, "
+		                        "standstill_max_bias_deg_s >= 0");
 }
 
 void AttitudeOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
@@ -35,6 +45,10 @@ void AttitudeOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
 	c.write(s, "accel_lowpass_s", accel_lowpass_s);
 	c.write(s, "gravity", gravity);
 	c.write(s, "init_samples", init_samples);
+	c.write(s, "standstill_bias", standstill_bias);
+	c.write(s, "standstill_gyro_deg_s", standstill_gyro_deg_s);
+	c.write(s, "standstill_accel_mps2", standstill_accel_mps2);
+	c.write(s, "standstill_max_bias_deg_s", standstill_max_bias_deg_s);
 }
 
 namespace
@@ -49,9 +63,36 @@ Eigen::Quaterniond expQ(const Eigen::Vector3d& w)
 }
 }  // namespace
 
+void AttitudeFilter::trackRest(const Eigen::Vector3d& gyro,
+                               const Eigen::Vector3d& acc)
+{
+	if (!rest_) return;
+	if (!o_.standstill_bias || !gyro.allFinite() || !acc.allFinite())
+	{
+		rest_ = false;
+		return;
+	}
+	constexpr double kDeg = M_PI / 180;
+	if (rest_n_ > 0 &&
+	    ((gyro - rest_gyro_sum_ / rest_n_).norm() >
+	         o_.standstill_gyro_deg_s * kDeg ||
+	     (acc - rest_acc_sum_ / rest_n_).norm() > o_.standstill_accel_mps2))
+	{
+		rest_ = false;  // moved: the estimate so far stays
+		return;
+	}
+	rest_gyro_sum_ += gyro, rest_acc_sum_ += acc, rest_n_++;
+	const Eigen::Vector3d mean = rest_gyro_sum_ / rest_n_;
+	if (mean.norm() <= o_.standstill_max_bias_deg_s * kDeg)
+		bias_ = mean;
+	else
+		bias_.setZero();  // a slow turn, not a bias
+}
+
 void AttitudeFilter::update(const Eigen::Vector3d& gyro,
                             const Eigen::Vector3d& acc, double dt)
 {
+	trackRest(gyro, acc);
 	const double an = acc.norm();
 	if (!initialised_)
 	{
@@ -85,7 +126,8 @@ void AttitudeFilter::update(const Eigen::Vector3d& gyro,
 			const double k =
 			    std::abs(fn - o_.gravity) < o_.accel_tolerance ? 1.0 : 0.1;
 			w += k * o_.kp * e;
-			bias_ -= k * o_.ki * e * dt;
+			// At rest the bias is the mean gyro (trackRest).
+			if (!rest_) bias_ -= k * o_.ki * e * dt;
 		}
 	}
 	q_ = (q_ * expQ(w * dt)).normalized();
