@@ -20,6 +20,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <map>
 #include <unordered_map>
 
 namespace forest_slam::pipeline
@@ -31,9 +32,13 @@ struct MappingPipeline::GnssOrigin
 
 struct MappingPipeline::TreeMerge
 {
-	/** Correction of every scan mapped at the merge's start. */
-	std::vector<Eigen::Isometry3f, Eigen::aligned_allocator<Eigen::Isometry3f>>
+	/** Correction of every scan mapped at the merge's start, per merge
+	 * version of the columns to move (TreeLayer::AtTime). */
+	std::map<uint32_t, std::vector<Eigen::Isometry3f,
+	                               Eigen::aligned_allocator<Eigen::Isometry3f>>>
 	    C;
+	std::vector<trees::ColumnKey> keys;  ///< the columns to move (all: {})
+	uint32_t version = 0;                ///< this merge's number
 	core::TimeIndex clock{std::vector<double>{0.0}};
 	std::vector<Eigen::Vector2d> xy;  ///< their positions as mapped
 	// On the map worker only:
@@ -400,23 +405,41 @@ size_t scanNearestColumn(const std::vector<Eigen::Vector2d>& xy,
 }
 }  // namespace
 
+core::Trajectory MappingPipeline::treeMapped(const core::Trajectory& as_mapped,
+                                             uint32_t version) const
+{
+	if (version == 0) return as_mapped;
+	return withMerged(as_mapped, tree_merge_poses_.at(version - 1));
+}
+
 void MappingPipeline::correctTreeLayer(const core::Trajectory& as_mapped)
 {
-	// Scans before the last in-run merge of the passes: from where that
-	// merge put their voxels.
-	const core::Trajectory mapped = withMerged(as_mapped, tree_merged_pose_);
+	// A column's scans before the in-run merge that last moved it: from
+	// where that merge put their voxels.
+	std::map<uint32_t, core::Trajectory> mapped;
+	for (const auto& k : tree_layer_->columns())
+	{
+		const uint32_t v = tree_layer_->mergeVersion(k);
+		if (!mapped.count(v)) mapped.emplace(v, treeMapped(as_mapped, v));
+	}
 	// Stem-band voxels move with the correction of the scan at their mean
 	// time (the passes were kept apart for this); ground cells and trees
 	// with that of the scan that passed nearest to the column's centre.
-	const auto C = scanCorrections(trajectory_, mapped);
-	const core::TimeIndex clock(scanTimes(mapped));
-	const auto at_time = [&](double ts) { return C[clock.at(ts)]; };
-	const auto xy = scanPositions(mapped);
+	std::map<uint32_t, std::vector<Eigen::Isometry3f,
+	                               Eigen::aligned_allocator<Eigen::Isometry3f>>>
+	    C;
+	for (const auto& [v, m] : mapped)
+		C.emplace(v, scanCorrections(trajectory_, m));
+	const core::TimeIndex clock(scanTimes(as_mapped));
+	const auto at_time = [&](uint32_t v, double ts)
+	{ return C.at(v)[clock.at(ts)]; };
+	const auto xy = scanPositions(as_mapped);
 	const auto of_column = [&](const trees::ColumnKey& k)
 	{
 		const size_t n = scanNearestColumn(xy, k, tree_layer_->columnSize());
-		return Eigen::Isometry3d(trajectory_[n].pose *
-		                         mapped[n].pose.inverse());
+		return Eigen::Isometry3d(
+		    trajectory_[n].pose *
+		    mapped.at(tree_layer_->mergeVersion(k))[n].pose.inverse());
 	};
 	const auto t0 = std::chrono::steady_clock::now();
 	const size_t redetect = tree_layer_->correct(at_time, of_column, map_);
@@ -488,7 +511,8 @@ void MappingPipeline::stepTreeMerge(size_t max_voxels)
 		    {
 			    m->started = std::chrono::steady_clock::now();
 			    m->rss0_mb = core::currentRssMb();
-			    m->steps = tree_layer_->beginCorrection(true);
+			    m->steps =
+			        tree_layer_->beginCorrection(true, m->keys, m->version);
 		    }
 		    const bool all = max_voxels == std::numeric_limits<size_t>::max();
 		    if (!all)
@@ -496,13 +520,14 @@ void MappingPipeline::stepTreeMerge(size_t max_voxels)
 			    m->credit += int64_t(max_voxels);
 			    if (m->credit <= 0) return;  // a big column paid back
 		    }
-		    const auto at_time = [&](double ts)
-		    { return m->C[m->clock.at(ts)]; };
+		    const auto at_time = [&](uint32_t v, double ts)
+		    { return m->C.at(v)[m->clock.at(ts)]; };
 		    const double column_m = tree_layer_->columnSize();
 		    const auto of_column = [&](const trees::ColumnKey& k)
 		    {
-			    return Eigen::Isometry3d(
-			        m->C[scanNearestColumn(m->xy, k, column_m)].cast<double>());
+			    return Eigen::Isometry3d(m->C.at(tree_layer_->mergeVersion(
+			        k))[scanNearestColumn(m->xy, k, column_m)]
+			                                 .cast<double>());
 		    };
 		    m->step_jobs++;
 		    const size_t moved0 = m->steps->moved_voxels;
@@ -545,8 +570,7 @@ void MappingPipeline::mergeTreeLayerPasses(const core::Trajectory& now)
 	// the same in every run.)
 	if (tree_merge_ && !tree_merge_->done) return;
 	const size_t voxels = tree_layer_->stats().stored_voxels;
-	const double density = double(voxels) / double(std::max<size_t>(
-	                                            1, tree_layer_->groundCells()));
+	std::vector<trees::ColumnKey> keys;  // empty: every column
 	if (tree_layer_->detectsDuringRun())
 	{
 		// Online, a merge also moves the stems found so far with the
@@ -562,34 +586,60 @@ void MappingPipeline::mergeTreeLayerPasses(const core::Trajectory& now)
 		// Stems detected at the end: the final correction moves every voxel
 		// with its own scan's correction, and a merge during the run only
 		// bounds the passes piling up where the path comes back (each lap
-		// one more copy of the stems around it). Counted as stem-band voxels
-		// per ground cell (the area seen): a merge when that grew by half
-		// since the last one, or since the first correction (one pass).
-		// By the voxel count alone, the robot run (new ground most of the
-		// way) merged 3 times, a quarter of the layer's CPU, and each merge
-		// froze its passes at an estimate that later closures moved.
-		if (tree_density_at_merge_ <= 0)
-		{
-			tree_density_at_merge_ = density;
-			return;
-		}
-		if (2 * density < 3 * tree_density_at_merge_) return;
+		// one more copy of the stems around it). So only the columns where
+		// they piled up are merged: stem-band voxels per ground cell (the
+		// area seen) grown by half since their last merge, or since they
+		// were complete (out of the sensor's reach; the sensor: where the
+		// last scan was mapped, the layer's frame;
+		// TreeLayer::takePiledUpColumns). By the voxel
+		// count alone, the robot run (new ground most of the way) merged 3
+		// times, a quarter of the layer's CPU, and each merge froze its
+		// passes at an estimate that later closures moved; by the density
+		// of the whole layer, twice, every column each time.
+		keys = tree_layer_->takePiledUpColumns(
+		    1.5, trajectory_.back().pose.translation());
+		if (keys.empty()) return;
 	}
-	const core::Trajectory mapped = withMerged(trajectory_, tree_merged_pose_);
 	auto m = std::make_shared<TreeMerge>();
-	m->C = scanCorrections(now, mapped);
-	m->clock = core::TimeIndex(scanTimes(mapped));
+	m->keys = keys;
+	m->version = uint32_t(tree_merge_poses_.size() + 1);
+	// Each column moves from where its own last merge put it.
+	for (const auto& k : keys.empty() ? tree_layer_->columns() : keys)
+	{
+		const uint32_t v = tree_layer_->mergeVersion(k);
+		if (!m->C.count(v))
+			m->C.emplace(v, scanCorrections(now, treeMapped(trajectory_, v)));
+	}
+	m->clock = core::TimeIndex(scanTimes(trajectory_));
 	// Ground cells and trees: the correction of the scan nearest to the
 	// column's centre (as in correctTreeLayer).
-	m->xy = scanPositions(mapped);
+	m->xy = scanPositions(trajectory_);
 	tree_merge_ = m;
 	stepTreeMerge(kTreeMergeStepVoxels);
-	tree_merged_pose_.resize(now.size());
-	for (size_t i = 0; i < now.size(); i++) tree_merged_pose_[i] = now[i].pose;
+	tree_merge_poses_.emplace_back(now.size());
+	for (size_t i = 0; i < now.size(); i++)
+		tree_merge_poses_.back()[i] = now[i].pose;
+	// The estimates no column is in any more (the merge's columns take the
+	// new one) are freed: a long run's are megabytes each.
+	std::vector<bool> used(tree_merge_poses_.size() + 1, false);
+	used[m->version] = true;
+	for (const auto& k : tree_layer_->columns())
+	{
+		const bool moved =
+		    keys.empty() ||
+		    std::binary_search(
+		        keys.begin(), keys.end(), k,
+		        [](const trees::ColumnKey& a, const trees::ColumnKey& b)
+		        { return a.x != b.x ? a.x < b.x : a.y < b.y; });
+		if (!moved) used[tree_layer_->mergeVersion(k)] = true;
+	}
+	for (size_t v = 1; v < used.size(); v++)
+		if (!used[v])
+			decltype(tree_merge_poses_)::value_type().swap(
+			    tree_merge_poses_[v - 1]);
 	// The count after the merge is known only on the worker: the next
 	// merge waits for half as many again as before this one.
 	tree_voxels_at_merge_ = voxels;
-	tree_density_at_merge_ = density;
 	tree_merges_++;
 }
 

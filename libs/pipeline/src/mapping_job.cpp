@@ -508,6 +508,10 @@ std::vector<std::string> writeOutputs(const MappingPipeline& p,
 		       << ", \"update_cpu_ms\": " << tree_update_cpu_ms
 		       << ", \"update_share_of_cpu\": "
 		       << (cpu_s > 0 ? tree_update_cpu_ms / (1000 * cpu_s) : 0)
+		       << ", \"store_cpu_ms\": "
+		       << (layer ? layer->stats().store_cpu_ms : 0)
+		       << ", \"correct_cpu_ms\": "
+		       << (layer ? layer->stats().correct_cpu_ms : 0)
 		       << ", \"finish_ms\": " << s.tree_finish_ms
 		       << ", \"correct_ms\": "
 		       << (layer ? layer->stats().correct_ms : 0)

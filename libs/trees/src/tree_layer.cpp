@@ -673,7 +673,7 @@ void TreeLayer::addScan(const std::vector<Eigen::Vector3f>& pts,
 		throw std::logic_error(
 		    "TreeLayer::addScan after releaseStemVoxels (end of the run)");
 	const auto t0 = std::chrono::steady_clock::now();
-	const CpuTally cpu(stats_.cpu_ms);
+	const CpuTally cpu(stats_.cpu_ms), store_cpu(stats_.store_cpu_ms);
 	stats_.scans++;
 	if (!std::isfinite(time_s)) time_s = 0.1 * double(stats_.scans - 1);
 	if (!std::isfinite(t0_s_)) t0_s_ = time_s;
@@ -1094,7 +1094,7 @@ void TreeLayer::startPass()
 }
 
 size_t TreeLayer::correct(
-    const std::function<Eigen::Isometry3f(double t_s)>& at_time,
+    const AtTime& at_time,
     const std::function<Eigen::Isometry3d(const ColumnKey&)>& of_column,
     map::CForestMap& map, bool in_run)
 {
@@ -1104,13 +1104,28 @@ size_t TreeLayer::correct(
 	return steps.redetect;
 }
 
-TreeLayer::CorrectionSteps TreeLayer::beginCorrection(bool in_run) const
+TreeLayer::CorrectionSteps TreeLayer::beginCorrection(
+    bool in_run, std::vector<ColumnKey> keys, uint32_t version) const
 {
 	if (released_)
 		throw std::logic_error("TreeLayer::correct after releaseStemVoxels");
 	CorrectionSteps steps;
-	steps.keys = columns();
+	if (keys.empty())
+		steps.keys = columns();
+	else
+	{
+		// Sorted, existing columns only (the order of the steps).
+		keys.erase(
+		    std::remove_if(keys.begin(), keys.end(),
+		                   [&](const ColumnKey& k) { return !cols_.count(k); }),
+		    keys.end());
+		std::sort(keys.begin(), keys.end(),
+		          [](const ColumnKey& a, const ColumnKey& b)
+		          { return a.x != b.x ? a.x < b.x : a.y < b.y; });
+		steps.keys = std::move(keys);
+	}
 	steps.in_run = in_run;
+	steps.version = version;
 	// In the run the passes started from now on are in the newer frame;
 	// at the end every pass is moved.
 	steps.last_pass = in_run ? pass_ : UINT32_MAX;
@@ -1118,15 +1133,14 @@ TreeLayer::CorrectionSteps TreeLayer::beginCorrection(bool in_run) const
 }
 
 bool TreeLayer::correctStep(
-    CorrectionSteps& steps,
-    const std::function<Eigen::Isometry3f(double t_s)>& at_time,
+    CorrectionSteps& steps, const AtTime& at_time,
     const std::function<Eigen::Isometry3d(const ColumnKey&)>& of_column,
     map::CForestMap& map, size_t max_voxels)
 {
 	if (released_)
 		throw std::logic_error("TreeLayer::correct after releaseStemVoxels");
 	const auto started = std::chrono::steady_clock::now();
-	const CpuTally cpu(stats_.cpu_ms);
+	double cpu_ms = 0;  // both threads, added to cpu_ms and correct_cpu_ms
 	const double t0 = std::isfinite(t0_s_) ? t0_s_ : 0.0;
 	const float rigid_m = float(0.5 * o_.layer_voxel_m);
 	const std::vector<ColumnKey>& keys = steps.keys;
@@ -1163,8 +1177,10 @@ bool TreeLayer::correctStep(
 				SortedVoxels& stem = resident(c);  // reads only
 				const size_t before = stem.size();
 				const float worst = stem.transformByTime(
-				    [&](float t) { return at_time(t0 + double(t)); },
+				    [&, v = c.version](float t)
+				    { return at_time(v, t0 + double(t)); },
 				    T.cast<float>(), steps.in_run, steps.last_pass);
+				if (steps.in_run) c.version = steps.version;
 				moveGroundAndTrees(c, T);
 				stem.compact();
 				lock.lock();
@@ -1193,19 +1209,23 @@ bool TreeLayer::correctStep(
 		}
 	};
 	{
+		const CpuTally cpu(cpu_ms);
 		std::optional<SecondThread> second;
-		if (keys.size() - steps.next > 1) second.emplace(work, stats_.cpu_ms);
+		if (keys.size() - steps.next > 1) second.emplace(work, cpu_ms);
 		work();
 	}
-	if (error) std::rethrow_exception(error);
-	if (steps.done())
+	if (!error && steps.done())
 	{
+		const CpuTally cpu(cpu_ms);
 		// At the end of the run every pass is now one; in the run the
 		// passes after last_pass go on (their frame is the newer one).
 		if (!steps.in_run) pass_ = 0;
 		publish(map);
 	}
+	stats_.cpu_ms += cpu_ms;
+	stats_.correct_cpu_ms += cpu_ms;
 	stats_.correct_ms += msSince(started);
+	if (error) std::rethrow_exception(error);
 	return steps.done();
 }
 
@@ -1255,6 +1275,39 @@ void TreeLayer::transformColumn(const ColumnKey& k, const Eigen::Isometry3d& T,
 	c.dirty = true;  // detected again when due
 	moveGroundAndTrees(c, T);
 	publish(map);
+}
+
+double TreeLayer::density(const Column& c)
+{
+	return double(c.stem.size()) / double(std::max<size_t>(1, c.lowest.size()));
+}
+
+std::vector<ColumnKey> TreeLayer::takePiledUpColumns(
+    double growth, const Eigen::Vector3d& sensor)
+{
+	std::vector<ColumnKey> out;
+	for (auto& [k, c] : cols_)
+	{
+		if (distanceToSquare(sensor.x(), sensor.y(), k.x * column_m_,
+		                     k.y * column_m_,
+		                     column_m_) <= o_.layer_max_range_m)
+			continue;
+		const double d = density(c);
+		if (c.pile_density <= 0)
+			c.pile_density = d;
+		else if (d >= growth * c.pile_density)
+			out.push_back(k), c.pile_density = d;
+	}
+	std::sort(out.begin(), out.end(),
+	          [](const ColumnKey& a, const ColumnKey& b)
+	          { return a.x != b.x ? a.x < b.x : a.y < b.y; });
+	return out;
+}
+
+uint32_t TreeLayer::mergeVersion(const ColumnKey& k) const
+{
+	const auto it = cols_.find(k);
+	return it == cols_.end() ? 0 : it->second.version;
 }
 
 size_t TreeLayer::groundCells() const

@@ -232,15 +232,21 @@ class MappingPipeline
 	 * read after a flush). */
 	size_t map_voxels_at_merge_ = 0;
 	size_t map_merges_ = 0;  ///< in-run merges so far
-	/** The same for the tree layer's stem-band voxels (merged on their
-	 * own schedule, on the map worker). */
-	std::vector<Eigen::Isometry3d, Eigen::aligned_allocator<Eigen::Isometry3d>>
-	    tree_merged_pose_;
+	/** The same for the tree layer's stem-band voxels, merged on their
+	 * own schedule (on the map worker) and column by column: the estimate
+	 * at each in-run merge (merge v: tree_merge_poses_[v - 1]; emptied once
+	 * no column is last moved by it). A column last moved by merge v holds
+	 * the voxels of the scans mapped before it where that estimate put
+	 * them (TreeLayer::mergeVersion). */
+	std::vector<std::vector<Eigen::Isometry3d,
+	                        Eigen::aligned_allocator<Eigen::Isometry3d>>>
+	    tree_merge_poses_;
 	size_t tree_voxels_at_merge_ = 0;
-	/** Stem-band voxels per ground cell at the last merge of the tree
-	 * layer's passes (or at the first correction); 0 before. */
-	double tree_density_at_merge_ = 0;
 	size_t tree_merges_ = 0;
+	/** The scans in the frame of the tree layer's columns last moved by
+	 * merge `version` (0: as mapped). */
+	core::Trajectory treeMapped(const core::Trajectory& as_mapped,
+	                            uint32_t version) const;
 	/** The tree layer's in-run merge in progress, moved a few columns per
 	 * mapped scan (a step job on the map worker after each scan's
 	 * insertion: the same steps in every run, whatever the timing). */

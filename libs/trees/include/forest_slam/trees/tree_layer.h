@@ -65,6 +65,10 @@ struct TreeLayerStats
 	 * is the updates: storing scans, spilling, corrections, detections
 	 * during the run. */
 	double finish_cpu_ms = 0;
+	/** Of cpu_ms: storing scans (addScan), and moving the stored voxels
+	 * with loop corrections (in-run merges and the final correction). */
+	double store_cpu_ms = 0;
+	double correct_cpu_ms = 0;
 	std::vector<double> detect_ms_each;  ///< per column detection
 	size_t stored_voxels = 0;            ///< stem-band voxels now
 	/** Stem-band voxels when releaseStemVoxels() freed them (0 before). */
@@ -122,8 +126,13 @@ class TreeLayer
 	 * correction looks up a scan that was there (the mean time of passes
 	 * minutes apart is a scan elsewhere); the columns to detect again are
 	 * detected when due, as in update(). */
+	/** `at_time(version, t)`: the correction of the scan at time t for a
+	 * column whose voxels were last merged by the in-run merge numbered
+	 * `version` (beginCorrection; 0: never merged, as mapped). */
+	using AtTime =
+	    std::function<Eigen::Isometry3f(uint32_t version, double t_s)>;
 	size_t correct(
-	    const std::function<Eigen::Isometry3f(double t_s)>& at_time,
+	    const AtTime& at_time,
 	    const std::function<Eigen::Isometry3d(const ColumnKey&)>& of_column,
 	    map::CForestMap& map, bool in_run = false);
 
@@ -135,22 +144,28 @@ class TreeLayer
 	 * be added and startPass() called between the steps. */
 	struct CorrectionSteps
 	{
-		std::vector<ColumnKey> keys;  ///< the columns at the start
+		std::vector<ColumnKey> keys;  ///< the columns to move
 		size_t next = 0;              ///< first of keys not moved yet
 		uint32_t last_pass = 0;       ///< passes merged: 0..last_pass
 		bool in_run = true;
+		/** In the run: the merge's number, which the columns moved take
+		 * (their voxels are then where this merge's estimate put them). */
+		uint32_t version = 0;
 		size_t redetect = 0;  ///< columns whose passes disagreed so far
 		/** Stem-band voxels the steps so far took (1 for an empty column). */
 		size_t moved_voxels = 0;
 		bool done() const { return next >= keys.size(); }
 	};
-	CorrectionSteps beginCorrection(bool in_run) const;
+	/** `keys`: the columns to move (empty: all); `version`: the in-run
+	 * merge's number (> every earlier one), which they take. */
+	CorrectionSteps beginCorrection(bool in_run,
+	                                std::vector<ColumnKey> keys = {},
+	                                uint32_t version = 0) const;
 	/** Moves the next columns of `steps` (as correct()) until they held
 	 * `max_voxels` stem-band voxels (at least one column); after the last
 	 * one writes the tree layer into `map`. Returns steps.done(). */
 	bool correctStep(
-	    CorrectionSteps& steps,
-	    const std::function<Eigen::Isometry3f(double t_s)>& at_time,
+	    CorrectionSteps& steps, const AtTime& at_time,
 	    const std::function<Eigen::Isometry3d(const ColumnKey&)>& of_column,
 	    map::CForestMap& map, size_t max_voxels);
 
@@ -176,6 +191,17 @@ class TreeLayer
 	/** Ground cells (layer_ground_cell_m squares) holding a lowest point:
 	 * the area the layer has seen. */
 	size_t groundCells() const;
+	/** The columns where the passes piled up: stem-band voxels per ground
+	 * cell at least `growth` times what they were when last returned here,
+	 * or when first seen out of the reach of new points
+	 * (layer_max_range_m from `sensor`), i.e. complete. The path coming
+	 * back adds a pass's copy of the stems to the ground already seen; a
+	 * column still being filled adds both. Columns within reach are left
+	 * for later. The columns returned start again from their density now. */
+	std::vector<ColumnKey> takePiledUpColumns(double growth,
+	                                          const Eigen::Vector3d& sensor);
+	/** The in-run merge that last moved column k (0: none; as mapped). */
+	uint32_t mergeVersion(const ColumnKey& k) const;
 	/** Stem-band points of a column (voxel centroids), for diagnostics. */
 	std::vector<Eigen::Vector3f> stemPoints(const ColumnKey& k) const;
 	const TreeLayerStats& stats() const { return stats_; }
@@ -412,7 +438,11 @@ class TreeLayer
 		SortedVoxels stem;
 		std::vector<map::TreeRecord> trees;
 		bool dirty = false;
+		uint32_t version = 0;     ///< CorrectionSteps::version
+		double pile_density = 0;  ///< takePiledUpColumns' reference
 	};
+	/** Stem-band voxels per ground cell of a column. */
+	static double density(const Column& c);
 
 	/** addScan's ground cells of one scan, kept between scans (cleared as
 	 * used): a square grid of layer_ground_cell_m cells around the sensor
