@@ -18,6 +18,7 @@ void AttitudeOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 	FS_LOAD(c, s, standstill_gyro_deg_s);
 	FS_LOAD(c, s, standstill_accel_mps2);
 	FS_LOAD(c, s, standstill_max_bias_deg_s);
+	FS_LOAD(c, s, standstill_window_samples);
 	const std::string where = core::configOrigin(c) + ": [" + s + "] ";
 	if (!(kp >= 0) || !(ki >= 0))
 		throw core::ConfigError(where + "kp and ki must be >= 0");
@@ -34,6 +35,9 @@ void AttitudeOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 		                        "standstill_gyro_deg_s and "
 		                        "standstill_accel_mps2 must be > 0, "
 		                        "standstill_max_bias_deg_s >= 0");
+	if (standstill_window_samples < 1)
+		throw core::ConfigError(where +
+		                        "standstill_window_samples must be >= 1");
 }
 
 void AttitudeOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
@@ -49,6 +53,7 @@ void AttitudeOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
 	c.write(s, "standstill_gyro_deg_s", standstill_gyro_deg_s);
 	c.write(s, "standstill_accel_mps2", standstill_accel_mps2);
 	c.write(s, "standstill_max_bias_deg_s", standstill_max_bias_deg_s);
+	c.write(s, "standstill_window_samples", standstill_window_samples);
 }
 
 namespace
@@ -73,16 +78,34 @@ void AttitudeFilter::trackRest(const Eigen::Vector3d& gyro,
 		return;
 	}
 	constexpr double kDeg = M_PI / 180;
-	if (rest_n_ > 0 &&
-	    ((gyro - rest_gyro_sum_ / rest_n_).norm() >
-	         o_.standstill_gyro_deg_s * kDeg ||
-	     (acc - rest_acc_sum_ / rest_n_).norm() > o_.standstill_accel_mps2))
+	// Tested by windows of samples, whose means show the start of a slow
+	// motion (a robot's speed ramp, its vibration growing with the speed)
+	// above the noise; a window that moved is left out, so the estimate
+	// is made of samples at rest only (sample by sample, 3 deg/s let the
+	// robot's first half second of driving into it: its map turned by
+	// 30 mdeg).
+	win_gyro_sum_ += gyro, win_acc_sum_ += acc, win_n_++;
+	if (win_n_ >= o_.standstill_window_samples)
 	{
-		rest_ = false;  // moved: the estimate so far stays
-		return;
+		const Eigen::Vector3d g = win_gyro_sum_ / win_n_,
+		                      a = win_acc_sum_ / win_n_;
+		if (rest_n_ > 0 &&
+		    ((g - rest_gyro_sum_ / rest_n_).norm() >
+		         o_.standstill_gyro_deg_s * kDeg ||
+		     (a - rest_acc_sum_ / rest_n_).norm() > o_.standstill_accel_mps2))
+		{
+			rest_ = false;  // moved: the estimate so far stays
+			return;
+		}
+		rest_gyro_sum_ += win_gyro_sum_, rest_acc_sum_ += win_acc_sum_;
+		rest_n_ += win_n_;
+		win_gyro_sum_.setZero(), win_acc_sum_.setZero(), win_n_ = 0;
 	}
-	rest_gyro_sum_ += gyro, rest_acc_sum_ += acc, rest_n_++;
-	const Eigen::Vector3d mean = rest_gyro_sum_ / rest_n_;
+	// Until the first window is complete (the first scan's deskew may come
+	// before), the samples so far.
+	const Eigen::Vector3d mean = rest_n_ > 0
+	                                 ? Eigen::Vector3d(rest_gyro_sum_ / rest_n_)
+	                                 : Eigen::Vector3d(win_gyro_sum_ / win_n_);
 	if (mean.norm() <= o_.standstill_max_bias_deg_s * kDeg)
 		bias_ = mean;
 	else

@@ -1,3 +1,4 @@
+#include <forest_slam/core/log.h>
 #include <forest_slam/imu/imu_buffer.h>
 
 #include <algorithm>
@@ -23,7 +24,16 @@ bool ImuBuffer::add(double t_s, const Eigen::Vector3d& gyro,
 	const double gap = samples_.empty() ? 0.0 : t_s - samples_.back().s.t_s;
 	if (gap > kMaxStep_s)
 		settle_until_s_ = t_s + std::min(2.0, 2.0 / std::max(0.05, kp_));
+	const bool at_rest = filter_.atRestSinceStart();
 	filter_.update(e.s.gyro, e.s.acc, std::min(kMaxStep_s, gap));
+	if (at_rest && !filter_.atRestSinceStart() && filter_.restSamples() > 0)
+	{
+		const Eigen::Vector3d b = filter_.gyroBias() * 180 / M_PI;
+		FS_LOG_INFO("IMU: gyro bias from the start at rest ("
+		            << filter_.restSamples() << " samples, until t=" << t_s
+		            << " s): " << b.x() << " " << b.y() << " " << b.z()
+		            << " deg/s");
+	}
 	e.settling = t_s < settle_until_s_;
 	e.attitude = filter_.attitude();
 	e.bias = filter_.gyroBias();

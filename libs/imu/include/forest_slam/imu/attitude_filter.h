@@ -33,18 +33,20 @@ struct AttitudeOptions : public mrpt::config::CLoadableOptions
 	/** The filter levels itself with the mean specific force of this many
 	 * first samples (one noisy sample would tilt the whole map). */
 	int init_samples = 20;
-	/** The gyro bias from the start at rest: while every sample since the
-	 * first stays within standstill_gyro_deg_s and standstill_accel_mps2
-	 * of the means so far, the bias is the mean gyro (the integral term
-	 * takes over once the sensor moves). Yaw's bias is not observable from
-	 * gravity: left at 0, it twisted the first scan's deskew, which is the
-	 * map's origin (forest-sim handheld: the map rotated by ~10 mdeg).
-	 * A mean above standstill_max_bias_deg_s is taken for a slow turn, not
-	 * a bias: no estimate. */
+	/** The gyro bias from the start at rest: while the mean of every
+	 * window of standstill_window_samples samples since the first stays
+	 * within standstill_gyro_deg_s and standstill_accel_mps2 of the mean
+	 * so far, the bias is that mean gyro (the integral term takes over once
+	 * the sensor moves; the window that moved is left out). Yaw's bias is
+	 * not observable from gravity: left at 0, it twisted the first scan's
+	 * deskew, which is the map's origin (forest-sim handheld: the map
+	 * rotated by ~10 mdeg). A mean above standstill_max_bias_deg_s is
+	 * taken for a slow turn, not a bias: no estimate. */
 	bool standstill_bias = true;
-	double standstill_gyro_deg_s = 3.0;
-	double standstill_accel_mps2 = 0.5;
+	double standstill_gyro_deg_s = 0.5;
+	double standstill_accel_mps2 = 0.1;
 	double standstill_max_bias_deg_s = 2.0;
+	int standstill_window_samples = 20;
 
 	void loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 	                        const std::string& section) override;
@@ -72,6 +74,8 @@ class AttitudeFilter
 	const Eigen::Vector3d& gyroBias() const { return bias_; }
 	/** Whether every sample so far was at rest (standstill_bias). */
 	bool atRestSinceStart() const { return rest_; }
+	/** Samples the estimate at rest is made of. */
+	int restSamples() const { return rest_n_; }
 
    private:
 	AttitudeOptions o_;
@@ -86,6 +90,9 @@ class AttitudeFilter
 	Eigen::Vector3d rest_gyro_sum_ = Eigen::Vector3d::Zero();
 	Eigen::Vector3d rest_acc_sum_ = Eigen::Vector3d::Zero();
 	int rest_n_ = 0;
+	Eigen::Vector3d win_gyro_sum_ = Eigen::Vector3d::Zero();  ///< the window
+	Eigen::Vector3d win_acc_sum_ = Eigen::Vector3d::Zero();
+	int win_n_ = 0;
 	void trackRest(const Eigen::Vector3d& gyro, const Eigen::Vector3d& acc);
 };
 
