@@ -108,7 +108,9 @@ TEST(Imu, ASlowTurnFromTheStartIsNotTakenForABias)
 {
 	// 5 deg/s about z from the first sample: steady, but beyond
 	// standstill_max_bias_deg_s.
-	imu::ImuBuffer b;
+	imu::AttitudeOptions o;
+	o.standstill_bias = true;
+	imu::ImuBuffer b(o);
 	SpinningImu s;
 	s.w = 5 * M_PI / 180;
 	s.bias.setZero();
