@@ -626,11 +626,7 @@ void MappingPipeline::mergeTreeLayerPasses(const core::Trajectory& now)
 	for (const auto& k : tree_layer_->columns())
 	{
 		const bool moved =
-		    keys.empty() ||
-		    std::binary_search(
-		        keys.begin(), keys.end(), k,
-		        [](const trees::ColumnKey& a, const trees::ColumnKey& b)
-		        { return a.x != b.x ? a.x < b.x : a.y < b.y; });
+		    keys.empty() || std::binary_search(keys.begin(), keys.end(), k);
 		if (!moved) used[tree_layer_->mergeVersion(k)] = true;
 	}
 	for (size_t v = 1; v < used.size(); v++)

@@ -642,9 +642,7 @@ std::vector<ColumnKey> TreeLayer::columns() const
 {
 	std::vector<ColumnKey> out;
 	for (const auto& [k, c] : cols_) out.push_back(k);
-	std::sort(out.begin(), out.end(),
-	          [](const ColumnKey& a, const ColumnKey& b)
-	          { return a.x != b.x ? a.x < b.x : a.y < b.y; });
+	std::sort(out.begin(), out.end());
 	return out;
 }
 
@@ -842,9 +840,7 @@ size_t TreeLayer::detectAllDirty(map::CForestMap& map)
 	for (const auto& [k, c] : cols_)
 		if (c.dirty) due.push_back(k);
 	// Deterministic order (ids are given in detection order).
-	std::sort(due.begin(), due.end(),
-	          [](const ColumnKey& a, const ColumnKey& b)
-	          { return a.x != b.x ? a.x < b.x : a.y < b.y; });
+	std::sort(due.begin(), due.end());
 	// The end of the run detects every column (layer_detect_during_run
 	// false) with the mapping thread idle: two columns at once, unless the
 	// two together would hold more than kTwoAtOnceVoxels (each detection
@@ -1119,9 +1115,7 @@ TreeLayer::CorrectionSteps TreeLayer::beginCorrection(
 		    std::remove_if(keys.begin(), keys.end(),
 		                   [&](const ColumnKey& k) { return !cols_.count(k); }),
 		    keys.end());
-		std::sort(keys.begin(), keys.end(),
-		          [](const ColumnKey& a, const ColumnKey& b)
-		          { return a.x != b.x ? a.x < b.x : a.y < b.y; });
+		std::sort(keys.begin(), keys.end());
 		steps.keys = std::move(keys);
 	}
 	steps.in_run = in_run;
@@ -1298,9 +1292,7 @@ std::vector<ColumnKey> TreeLayer::takePiledUpColumns(
 		else if (d >= growth * c.pile_density)
 			out.push_back(k), c.pile_density = d;
 	}
-	std::sort(out.begin(), out.end(),
-	          [](const ColumnKey& a, const ColumnKey& b)
-	          { return a.x != b.x ? a.x < b.x : a.y < b.y; });
+	std::sort(out.begin(), out.end());
 	return out;
 }
 

@@ -38,6 +38,11 @@ struct ColumnKey
 {
 	int32_t x = 0, y = 0;
 	bool operator==(const ColumnKey& o) const { return x == o.x && y == o.y; }
+	/** x, then y: the columns' deterministic order. */
+	bool operator<(const ColumnKey& o) const
+	{
+		return x != o.x ? x < o.x : y < o.y;
+	}
 };
 struct ColumnKeyHash
 {
