@@ -409,6 +409,59 @@ TEST(TreeLayer, SegmentFitLeavesSharpStemsAlone)
 	}
 }
 
+// A stem in a shrub: foliage around it at breast height (an annulus 3–25 cm
+// outside its surface, 0.9–1.7 m above ground, on the side the sensor
+// sees), its ring blurred a little by a 2 cm pose jump so that the
+// multi-view fit runs. That fit gates the foliage out by the spread of the
+// points it keeps and leaves a ring too large with an RMSE low enough to
+// pass for a clean one (handheld seed 3: five stems read 4-6 cm too large);
+// the solid-ring fit runs first on the single circle, whose RMSE still
+// shows the foliage, and finds the stem (10 cm stem: +9.1 mm with the
+// solid ring after the multi-view fit, -4.6 mm before it).
+TEST(TreeLayer, StemInsideAShrubAtBreastHeightKeepsItsDbh)
+{
+	const std::vector<Stem> stems = {{24, 5, 0.15}, {27, -6, 0.1}};
+	TreeOptions o;
+	o.dbh_segment_scans = 5;
+	o.dbh_range_step_m = 0;
+	TreeLayer layer(o, 20.0);
+	map::CForestMap m;
+	std::mt19937 rng(11);
+	std::uniform_real_distribution<double> u(0, 1);
+	for (double x = 5; x <= 60; x += 1.0)
+	{
+		const Eigen::Vector3d s(x, 0, ground(x, 0) + 1.5);
+		auto pts = scan(stems, s, rng);
+		for (const auto& t : stems)
+		{
+			const double d = std::hypot(t.x - s.x(), t.y - s.y());
+			if (d > 20 || d < 1) continue;
+			const double facing = std::atan2(s.y() - t.y, s.x() - t.x);
+			for (int i = 0; i < 120; i++)
+			{
+				const double ang = facing + (u(rng) - 0.5) * M_PI;
+				const double r = t.r + 0.03 + 0.22 * u(rng);
+				pts.emplace_back(t.x + r * std::cos(ang),
+				                 t.y + r * std::sin(ang),
+				                 ground(t.x, t.y) + 0.9 + 0.8 * u(rng));
+			}
+		}
+		const Eigen::Vector3f jump(x >= 28 ? -0.02f : 0.f, 0, 0);
+		for (auto& p : pts) p += jump;
+		layer.addScan(pts, s + jump.cast<double>());
+		layer.update(s, m);
+	}
+	layer.finish(m);
+	ASSERT_EQ(m.trees().size(), stems.size());
+	for (const auto& t : stems)
+	{
+		const auto& tree = nearestTree(m, t);
+		std::printf("stem r %.0f mm in a shrub: DBH %.1f mm (true %.0f)\n",
+		            1e3 * t.r, 1e3 * tree.dbh_m, 2e3 * t.r);
+		EXPECT_NEAR(tree.dbh_m, 2 * t.r, 0.006) << "stem at " << t.x;
+	}
+}
+
 TEST(TreeLayer, ReleasedStemVoxelsKeepTheTreesAndTheirCorrection)
 {
 	const std::vector<Stem> stems = {{4, 5, 0.15}, {9, -6, 0.2}, {14, 4, 0.1}};

@@ -674,13 +674,42 @@ std::vector<DetectedTree> detectTrees(
 			    cr.radius_m <= fo.max_radius_m)
 				f = evaluateCircle(near, cr, fo);
 		}
+		// Foliage at breast height around a stem seen from most sides (a
+		// shrub at its foot) makes the robust circle too large, with a high
+		// RMSE: the stem is solid, so a ring with the foliage outside and
+		// nothing inside is the stem (fitSolidRing). Only for such stems:
+		// on clean, noisy or one-sided rings it picks an inner ring of the
+		// noise and shrinks the DBH (applied above an RMSE of 2 cm, the
+		// handheld bias went from 0 to -0.8 cm). Tried before the multi-view
+		// fit, whose gate follows the spread of the points it keeps: it
+		// drops most of the foliage and leaves a ring too large with an RMSE
+		// that passes for a clean one (handheld seed 3: five stems in shrubs
+		// read 4-6 cm too large). A solid ring found is not refitted there
+		// (its scale over the whole band would let the foliage back in).
+		bool solid = false;
+		auto trySolidRing = [&]
+		{
+			if (!f.ok || f.rmse_m <= kSolidMinRmseM ||
+			    f.arc_coverage_deg < kSolidMinArcDeg)
+				return;
+			const Circle c = fitSolidRing(band, f.circle, 2 * o.ransac_inlier_m,
+			                              kSolidRingIterations, o.seed);
+			if (c.radius_m < f.circle.radius_m - kSolidMinShrinkM &&
+			    c.radius_m >= fo.min_radius_m)
+			{
+				f = evaluateCircle(band, c, fo);
+				st.solid_rings++;
+				solid = true;
+			}
+		};
+		trySolidRing();
 		// Multi-view: the breast-height points of every time segment, one
 		// shift per segment (pose errors between segments would blur the
 		// ring; a blurred or doubled ring fits one circle too large). Only
 		// a blurred circle (fit RMSE above good_rmse_m) can take its result
 		// (see below), so a sharp one skips it: it was 5 % of a ground-truth-
 		// pose run's CPU, spent on stems that kept their single circle.
-		if (f.ok && !s_grid.empty() && f.rmse_m > o.good_rmse_m)
+		if (!solid && f.ok && !s_grid.empty() && f.rmse_m > o.good_rmse_m)
 		{
 			Points2D sp, sd;
 			std::vector<uint32_t> ss;
@@ -754,25 +783,8 @@ std::vector<DetectedTree> detectTrees(
 			// and not if it sees less of the stem than the single circle.
 			if (g.ok && g.arc_coverage_deg >= 0.8 * f.arc_coverage_deg) f = g;
 		}
-		// Foliage at breast height around a stem seen from most sides (a
-		// shrub at its foot) makes the robust circle too large, with a high
-		// RMSE: the stem is solid, so a ring with the foliage outside and
-		// nothing inside is the stem (fitSolidRing). Only for such stems:
-		// on clean, noisy or one-sided rings it picks an inner ring of the
-		// noise and shrinks the DBH (applied above an RMSE of 2 cm, the
-		// handheld bias went from 0 to -0.8 cm).
-		if (f.ok && f.rmse_m > kSolidMinRmseM &&
-		    f.arc_coverage_deg >= kSolidMinArcDeg)
-		{
-			const Circle c = fitSolidRing(band, f.circle, 2 * o.ransac_inlier_m,
-			                              kSolidRingIterations, o.seed);
-			if (c.radius_m < f.circle.radius_m - kSolidMinShrinkM &&
-			    c.radius_m >= fo.min_radius_m)
-			{
-				f = evaluateCircle(band, c, fo);
-				st.solid_rings++;
-			}
-		}
+		// A multi-view circle still blurred by foliage.
+		if (!solid) trySolidRing();
 		// A circle seeing far less of the stem than its slices, with another
 		// radius, is a small circle through part of the ring (a local
 		// optimum; the robot run's GT 1465: 50 deg and r 10.3 cm where six
