@@ -20,6 +20,7 @@ void FeatureOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 	FS_LOAD(c, s, ground_decimation);
 	FS_LOAD(c, s, silhouette_gap_m);
 	FS_LOAD(c, s, edge_min_linearity);
+	FS_LOAD(c, s, planar_from_neighbours);
 	const std::string where = core::configOrigin(c) + ": [" + s + "] ";
 	if (half_window < 1 || half_window > 20)
 		throw core::ConfigError(where + "half_window must be in [1, 20]");
@@ -48,6 +49,7 @@ void FeatureOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
 	c.write(s, "ground_decimation", ground_decimation);
 	c.write(s, "silhouette_gap_m", silhouette_gap_m);
 	c.write(s, "edge_min_linearity", edge_min_linearity);
+	c.write(s, "planar_from_neighbours", planar_from_neighbours);
 }
 
 namespace
@@ -169,6 +171,7 @@ Features extractFeatures(const std::vector<FeatureInputPoint>& pts,
 	};
 	std::vector<RingPoint> R;
 	std::vector<int> edge_order, planar_order;
+	std::vector<float> planar_rank;
 	for (int ring = 0; ring <= max_ring; ring++)
 	{
 		uint32_t* line = line_of.data() + ring_start[ring];
@@ -183,6 +186,7 @@ Features extractFeatures(const std::vector<FeatureInputPoint>& pts,
 			const auto& p = pts[line[k]];
 			R[k] = {p.xyz, p.xyz.norm(), p.cluster, p.column, p.ground};
 		}
+		planar_rank.assign(n, -1.f);
 		// Smoothness of clustered points from same-cluster neighbours only.
 		for (int k = 0; k < n; k++)
 		{
@@ -220,6 +224,20 @@ Features extractFeatures(const std::vector<FeatureInputPoint>& pts,
 					    smooth, 1.0f + static_cast<float>(o.edge_threshold));
 			}
 			out.smoothness[line[k]] = smooth;
+			// The planar rank: the same window's curvature about the midpoint
+			// of the two nearest neighbours instead of the point itself, so
+			// that the choice does not depend on the point's own range noise.
+			float planar = smooth;
+			if (o.planar_from_neighbours && smooth >= 0 && m >= 2)
+			{
+				const Eigen::Vector3f mid =
+				    0.5f * (R[k - 1].xyz + R[k + 1].xyz);
+				Eigen::Vector3f d2 = Eigen::Vector3f::Zero();
+				for (int d = 2; d <= m; d++)
+					d2 += R[k - d].xyz + R[k + d].xyz - 2 * mid;
+				planar = d2.norm() / (2 * (m - 1) * std::max(pi.range, 1e-3f));
+			}
+			planar_rank[k] = planar;
 		}
 		// Per sector: the sharpest edges and the flattest planar points,
 		// with neighbours of a chosen point suppressed (LOAM). Only the
@@ -235,7 +253,8 @@ Features extractFeatures(const std::vector<FeatureInputPoint>& pts,
 				const float sm = out.smoothness[line[k]];
 				if (sm > o.edge_threshold)
 					edge_order.push_back(k);
-				else if (sm >= 0 && sm < o.planar_threshold)
+				else if (sm >= 0 && planar_rank[k] >= 0 &&
+				         planar_rank[k] < o.planar_threshold)
 					planar_order.push_back(k);
 			}
 			// Ties (every silhouette scores the same) are broken by a hash
@@ -255,8 +274,7 @@ Features extractFeatures(const std::vector<FeatureInputPoint>& pts,
 			std::sort(planar_order.begin(), planar_order.end(),
 			          [&](int a, int c)
 			          {
-				          const float sa = out.smoothness[line[a]],
-				                      sc = out.smoothness[line[c]];
+				          const float sa = planar_rank[a], sc = planar_rank[c];
 				          return sa < sc || (sa == sc && a < c);
 			          });
 			auto suppress = [&](int k)

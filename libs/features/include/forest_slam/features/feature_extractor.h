@@ -34,6 +34,15 @@ struct FeatureOptions : public mrpt::config::CLoadableOptions
 	double edge_min_linearity = 0.6;
 	/** Ground points kept as planar features: every N-th per ring. */
 	int ground_decimation = 4;
+	/** Planar features ranked by the smoothness of their neighbours without
+	 * the point itself (the curvature of the window about the midpoint of
+	 * its two nearest neighbours). Ranked by its own smoothness, a point is
+	 * chosen where its range noise flattens the window: on a stem, whose
+	 * bulge faces the sensor, that picks points lying behind the surface
+	 * (4-16 mm at 3-12 m under 2.5 cm of noise), and the maps came out
+	 * short (doc/odometry.md, "Planar features chosen without their own
+	 * noise"). Edges keep the point's own smoothness. */
+	bool planar_from_neighbours = true;
 
 	void loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 	                        const std::string& section) override;
