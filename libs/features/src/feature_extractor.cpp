@@ -226,7 +226,12 @@ Features extractFeatures(const std::vector<FeatureInputPoint>& pts,
 			out.smoothness[line[k]] = smooth;
 			// The planar rank: the same window's curvature about the midpoint
 			// of the two nearest neighbours instead of the point itself, so
-			// that the choice does not depend on the point's own range noise.
+			// that the order does not depend on the point's own range noise.
+			// The point's own smoothness still has to pass the threshold
+			// (far above the noise on a stem): without it a lone outlier in
+			// a flat window was taken (handheld seed 1, odometry only: one
+			// stretch lost 4 cm, and the run's scale went from -0.039 to
+			// -0.065 %).
 			float planar = smooth;
 			if (o.planar_from_neighbours && smooth >= 0 && m >= 2)
 			{
@@ -253,7 +258,7 @@ Features extractFeatures(const std::vector<FeatureInputPoint>& pts,
 				const float sm = out.smoothness[line[k]];
 				if (sm > o.edge_threshold)
 					edge_order.push_back(k);
-				else if (sm >= 0 && planar_rank[k] >= 0 &&
+				else if (sm >= 0 && sm < o.planar_threshold &&
 				         planar_rank[k] < o.planar_threshold)
 					planar_order.push_back(k);
 			}

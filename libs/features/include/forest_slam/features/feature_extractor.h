@@ -41,7 +41,8 @@ struct FeatureOptions : public mrpt::config::CLoadableOptions
 	 * bulge faces the sensor, that picks points lying behind the surface
 	 * (4-16 mm at 3-12 m under 2.5 cm of noise), and the maps came out
 	 * short (doc/odometry.md, "Planar features chosen without their own
-	 * noise"). Edges keep the point's own smoothness. */
+	 * noise"). A planar point's own smoothness must still be below
+	 * planar_threshold (outliers); edges keep the point's own smoothness. */
 	bool planar_from_neighbours = true;
 
 	void loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
