@@ -233,7 +233,8 @@ Features extractFeatures(const std::vector<FeatureInputPoint>& pts,
 			// stretch lost 4 cm, and the run's scale went from -0.039 to
 			// -0.065 %).
 			float planar = smooth;
-			if (o.planar_from_neighbours && smooth >= 0 && m >= 2)
+			if (o.planar_from_neighbours && smooth >= 0 &&
+			    smooth < o.planar_threshold && m >= 2)
 			{
 				const Eigen::Vector3f mid =
 				    0.5f * (R[k - 1].xyz + R[k + 1].xyz);

@@ -709,6 +709,7 @@ std::vector<DetectedTree> detectTrees(
 		// a blurred circle (fit RMSE above good_rmse_m) can take its result
 		// (see below), so a sharp one skips it: it was 5 % of a ground-truth-
 		// pose run's CPU, spent on stems that kept their single circle.
+		bool multi_view = false;
 		if (!solid && f.ok && !s_grid.empty() && f.rmse_m > o.good_rmse_m)
 		{
 			Points2D sp, sd;
@@ -781,10 +782,11 @@ std::vector<DetectedTree> detectTrees(
 			// holds them): the multi-view circle is taken only for a stem
 			// whose single circle is blurred (fit RMSE above good_rmse_m),
 			// and not if it sees less of the stem than the single circle.
-			if (g.ok && g.arc_coverage_deg >= 0.8 * f.arc_coverage_deg) f = g;
+			if (g.ok && g.arc_coverage_deg >= 0.8 * f.arc_coverage_deg)
+				f = g, multi_view = true;
 		}
 		// A multi-view circle still blurred by foliage.
-		if (!solid) trySolidRing();
+		if (multi_view) trySolidRing();
 		// A circle seeing far less of the stem than its slices, with another
 		// radius, is a small circle through part of the ring (a local
 		// optimum; the robot run's GT 1465: 50 deg and r 10.3 cm where six

@@ -40,7 +40,7 @@ struct FeatureOptions : public mrpt::config::CLoadableOptions
 	 * chosen where its range noise flattens the window: on a stem, whose
 	 * bulge faces the sensor, that picks points lying behind the surface
 	 * (4-16 mm at 3-12 m under 2.5 cm of noise), and the maps came out
-	 * short (doc/odometry.md, "Planar features chosen without their own
+	 * short (doc/odometry.md, "Planar points chosen without their own
 	 * noise"). A planar point's own smoothness must still be below
 	 * planar_threshold (outliers); edges keep the point's own smoothness. */
 	bool planar_from_neighbours = true;
