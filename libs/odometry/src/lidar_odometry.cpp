@@ -21,6 +21,8 @@ void OdometryOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 	FS_LOAD(c, s, imu_translation);
 	FS_LOAD(c, s, degenerate_velocity_window_s);
 	FS_LOAD(c, s, sweep_motion_without_imu);
+	FS_LOAD(c, s, start_rotation_sigma_deg);
+	FS_LOAD(c, s, start_radius_m);
 	const std::string where = core::configOrigin(c) + ": [" + s + "] ";
 	if (prune_every_scans < 1)
 		throw core::ConfigError(where + "prune_every_scans must be >= 1");
@@ -32,6 +34,11 @@ void OdometryOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 	if (!(degenerate_velocity_window_s >= 0))
 		throw core::ConfigError(where +
 		                        "degenerate_velocity_window_s: expected >= 0");
+	if (!(start_rotation_sigma_deg >= 0))
+		throw core::ConfigError(where +
+		                        "start_rotation_sigma_deg: expected >= 0");
+	if (!(start_radius_m >= 0))
+		throw core::ConfigError(where + "start_radius_m: expected >= 0");
 }
 
 void OdometryOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
@@ -46,6 +53,8 @@ void OdometryOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
 	c.write(s, "imu_translation", imu_translation);
 	c.write(s, "degenerate_velocity_window_s", degenerate_velocity_window_s);
 	c.write(s, "sweep_motion_without_imu", sweep_motion_without_imu);
+	c.write(s, "start_rotation_sigma_deg", start_rotation_sigma_deg);
+	c.write(s, "start_radius_m", start_radius_m);
 }
 
 namespace
@@ -373,6 +382,16 @@ OdometryStep LidarOdometry::processScan(const core::ScanPoints& scan)
 			ropt.prior_rotation_sigma_deg =
 			    std::max(ropt.prior_rotation_sigma_deg,
 			             kSweepTwistSigmaRad * 180 / M_PI);
+		// The start: the gyro holds the rotation until the lidar has left
+		// the first viewpoint (OdometryOptions::start_rotation_sigma_deg).
+		left_start_ =
+		    left_start_ ||
+		    (predicted.translation() - initial_pose_.translation()).norm() >=
+		        cfg_.odometry.start_radius_m;
+		if (use_imu && !left_start_ &&
+		    cfg_.odometry.start_rotation_sigma_deg > 0)
+			ropt.prior_rotation_sigma_deg =
+			    cfg_.odometry.start_rotation_sigma_deg;
 		step.registration = registerFeatures(local_map_, cur.edges, cur.planar,
 		                                     predicted, ropt, priors);
 		if (scans_ == 1 && first_scan_)
@@ -403,9 +422,8 @@ OdometryStep LidarOdometry::processScan(const core::ScanPoints& scan)
 				insert(prepare(*first_scan_, m0, last_pose_, ignored),
 				       last_pose_);
 				local_worker_.flush();
-				step.registration =
-				    registerFeatures(local_map_, cur.edges, cur.planar,
-				                     predicted, cfg_.registration, priors);
+				step.registration = registerFeatures(
+				    local_map_, cur.edges, cur.planar, predicted, ropt, priors);
 			}
 		}
 		first_scan_.reset();
