@@ -30,9 +30,27 @@
 #include <type_traits>
 #include <unordered_map>
 #include <vector>
+#if defined(__SSE__)
+#include <xmmintrin.h>
+#endif
 
 namespace forest_slam::trees
 {
+namespace detail
+{
+/** std::lrint, inline: a libm call on x86-64's baseline, made for every
+ * component of every stem-band point. The SSE conversion rounds as the
+ * current rounding mode does, as lrint. */
+inline long roundToLong(float v)
+{
+#if defined(__SSE__)
+	return _mm_cvtss_si32(_mm_set_ss(v));
+#else
+	return std::lrint(v);
+#endif
+}
+}  // namespace detail
+
 /** A submap column: the map's submap key without z. */
 struct ColumnKey
 {
@@ -367,7 +385,8 @@ class TreeLayer
 		static constexpr float kDirScale = 32767.0f;
 		static int16_t toFixed(float v)
 		{
-			return int16_t(std::lrint(std::clamp(v, -32767.0f, 32767.0f)));
+			return int16_t(
+			    detail::roundToLong(std::clamp(v, -32767.0f, 32767.0f)));
 		}
 		/** A voxel of `count` points with these means. */
 		Voxel makeVoxel(uint64_t key, const Eigen::Vector3f& offset,
@@ -460,10 +479,11 @@ class TreeLayer
 		std::vector<Column*> column_of_cell;
 		std::vector<float> low_z;
 		/** Lowest of low_z over the cell's neighbourhood (the time
-		 * segments' height reference), and the scan that last touched
-		 * each cell (stats_.scans; 0: none yet). */
+		 * segments' height reference). */
 		std::vector<float> tag_z;
-		std::vector<uint64_t> touched_by;
+		/** low_z's minimum along each row over the neighbourhood's width
+		 * (+inf where no cell was touched): tag_z as two 1D minima. */
+		std::vector<float> row_min;
 	};
 	ScanCells scan_cells_;
 
