@@ -10,13 +10,22 @@
 
 using namespace forest_slam;
 
+namespace
+{
+/** A stand of poles on both sides of the drive: with only the world's
+ * default five, nothing but their silhouettes holds the pose across the
+ * motion (y). */
+std::vector<Eigen::Vector2d> standOfPoles()
+{
+	return {{5, 4}, {-6, -5}, {8, -6}, {-3, 6}, {2, -4}, {3, 3},  {-1, -3},
+	        {6, 2}, {9, 5},   {-4, 3}, {1, 5},  {4, -2}, {7, -3}, {10, -4}};
+}
+}  // namespace
+
 TEST(LidarOdometry, FollowsConstantVelocityMotion)
 {
 	test_support::MovingSensorWorld w;
-	// A stand of poles on both sides: with only the default five, nothing
-	// but their silhouettes holds the pose across the motion (y).
-	w.poles = {{5, 4}, {-6, -5}, {8, -6}, {-3, 6}, {2, -4}, {3, 3},  {-1, -3},
-	           {6, 2}, {9, 5},   {-4, 3}, {1, 5},  {4, -2}, {7, -3}, {10, -4}};
+	w.poles = standOfPoles();
 	map::CForestMap m;
 	odometry::OdometryConfig cfg;
 	odometry::LidarOdometry od(cfg, m);
@@ -62,8 +71,7 @@ std::vector<double> yawWithAWrongGyro(double start_sigma_deg,
                                       double start_radius_m, int scans)
 {
 	test_support::MovingSensorWorld w;
-	w.poles = {{5, 4}, {-6, -5}, {8, -6}, {-3, 6}, {2, -4}, {3, 3},  {-1, -3},
-	           {6, 2}, {9, 5},   {-4, 3}, {1, 5},  {4, -2}, {7, -3}, {10, -4}};
+	w.poles = standOfPoles();
 	imu::ImuBuffer imu;
 	const double rate = 0.5 * M_PI / 180;
 	for (double t = w.t0_s - 1; t < w.t0_s + (scans + 1) * w.period_s;

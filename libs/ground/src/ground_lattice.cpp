@@ -1,4 +1,5 @@
 #include <forest_slam/core/config.h>
+#include <forest_slam/core/fast_math.h>
 #include <forest_slam/ground/ground_lattice.h>
 
 #include <Eigen/Dense>
@@ -124,18 +125,18 @@ bool solveSym3(const Eigen::Matrix3d& A, const Eigen::Vector3d& b,
 	return true;
 }
 
-/** floor() without the libm call (-O2 without SSE4.1 does not inline it). */
-inline int32_t floorToInt(double v)
+/** Node index of a coordinate in node units (core::floorToInt: no libm
+ * call). */
+inline int32_t floorToNode(double v)
 {
-	const int32_t i = static_cast<int32_t>(v);
-	return i - (v < i);
+	return static_cast<int32_t>(core::floorToInt(v));
 }
 }  // namespace
 
 NodeKey GroundLattice::keyOf(double x, double y) const
 {
 	const double inv = 1.0 / opts_.node_spacing_m;
-	return {floorToInt(x * inv + 0.5), floorToInt(y * inv + 0.5)};
+	return {floorToNode(x * inv + 0.5), floorToNode(y * inv + 0.5)};
 }
 
 const LatticeNode* NodeStore::find(const NodeKey& k) const
@@ -265,8 +266,8 @@ std::vector<uint8_t> GroundLattice::labelScan(
 		// (Written so that NaN and infinite coordinates fail it too.)
 		if (!(dx * dx + dy * dy <= r2) || !std::isfinite(p.z())) continue;
 		// Window indices 0..W-1 (unsigned: one comparison each).
-		const uint32_t ui = floorToInt(p.x() * inv_s + 0.5) - c0.i + H,
-		               uj = floorToInt(p.y() * inv_s + 0.5) - c0.j + H;
+		const uint32_t ui = floorToNode(p.x() * inv_s + 0.5) - c0.i + H,
+		               uj = floorToNode(p.y() * inv_s + 0.5) - c0.j + H;
 		if (ui >= static_cast<uint32_t>(W) || uj >= static_cast<uint32_t>(W))
 			continue;
 		const int32_t c = static_cast<int32_t>(ui * W + uj);

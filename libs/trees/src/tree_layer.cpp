@@ -132,19 +132,6 @@ constexpr size_t kMaxPending = 300000;
 /** Read buffers kept by a detecting thread between reads (32 MB). */
 constexpr size_t kKeptReadVoxels = size_t(1) << 20;
 constexpr int64_t kKeyOffset = int64_t(1) << 20;  ///< 21 bits per axis
-/** std::floor to an integer, inline (a libm call on x86-64's baseline,
- * which has no SSE4.1 rounding; made per stem-band point and voxel). The
- * same result for |v| < 2^62. */
-inline int64_t floorToInt(double v)
-{
-	const int64_t i = int64_t(v);
-	return i - int64_t(double(i) > v);
-}
-inline int64_t floorToInt(float v)
-{
-	const int64_t i = int64_t(v);
-	return i - int64_t(float(i) > v);
-}
 /** `v`'s points into `m`: the mean offset and direction weighted by the
  * counts, each rounded once (the time is left to the caller). */
 template <class V>
@@ -153,10 +140,10 @@ void addMeans(V& m, const V& v)
 	const float w = float(v.count) / float(m.count + v.count);
 	for (int i = 0; i < 3; i++)
 	{
-		m.offset[i] = int16_t(detail::roundToLong(
+		m.offset[i] = int16_t(core::roundToLong(
 		    float(m.offset[i]) + w * float(v.offset[i] - m.offset[i])));
-		m.dir[i] = int16_t(detail::roundToLong(float(m.dir[i]) +
-		                                       w * float(v.dir[i] - m.dir[i])));
+		m.dir[i] = int16_t(core::roundToLong(float(m.dir[i]) +
+		                                     w * float(v.dir[i] - m.dir[i])));
 	}
 	m.count += v.count;
 }
@@ -166,7 +153,7 @@ uint64_t TreeLayer::SortedVoxels::keyOf(const Eigen::Vector3f& p) const
 {
 	auto axis = [&](float v)
 	{
-		const int64_t i = floorToInt(double(v) / voxel_m_) + kKeyOffset;
+		const int64_t i = core::floorToInt(double(v) / voxel_m_) + kKeyOffset;
 		return uint64_t(std::clamp<int64_t>(i, 0, (int64_t(1) << 21) - 1));
 	};
 	return (axis(p.x()) << 42) | (axis(p.y()) << 21) | axis(p.z());
@@ -711,8 +698,8 @@ void TreeLayer::addScan(const std::vector<Eigen::Vector3f>& pts,
 		const auto& p = pts[i];
 		if (!p.allFinite() || (p.head<2>() - s2).squaredNorm() > max_r2)
 			continue;
-		const int64_t lx = floorToInt(p.x() * inv_g) - ox,
-		              ly = floorToInt(p.y() * inv_g) - oy;
+		const int64_t lx = core::floorToInt(p.x() * inv_g) - ox,
+		              ly = core::floorToInt(p.y() * inv_g) - oy;
 		if (lx < 0 || ly < 0 || lx >= side || ly >= side) continue;
 		const int32_t c = int32_t(lx + side * ly);
 		sc.cell_of_point[i] = c;
@@ -1252,8 +1239,8 @@ void TreeLayer::moveGroundAndTrees(Column& c, const Eigen::Isometry3d& T)
 		    const Eigen::Vector3f q = Tf * p;
 		    bool added = false;
 		    Eigen::Vector3f& low = lowest.tryEmplace(
-		        core::packCellKey(floorToInt(q.x() * inv_g),
-		                          floorToInt(q.y() * inv_g), 0),
+		        core::packCellKey(core::floorToInt(q.x() * inv_g),
+		                          core::floorToInt(q.y() * inv_g), 0),
 		        &added);
 		    if (added || q.z() < low.z()) low = q;
 	    });

@@ -14,6 +14,7 @@
 //    ground cell so far: the stem band, fine enough for the DBH fit, which
 //    the map's 0.2 m / 0.4 m feature voxels are not.
 // Tree tops come from the map's own voxel clouds above the stem band.
+#include <forest_slam/core/fast_math.h>
 #include <forest_slam/core/flat_hash_map.h>
 #include <forest_slam/core/spill_file.h>
 #include <forest_slam/map/forest_map.h>
@@ -30,27 +31,9 @@
 #include <type_traits>
 #include <unordered_map>
 #include <vector>
-#if defined(__SSE__)
-#include <xmmintrin.h>
-#endif
 
 namespace forest_slam::trees
 {
-namespace detail
-{
-/** std::lrint, inline: a libm call on x86-64's baseline, made for every
- * component of every stem-band point. The SSE conversion rounds as the
- * current rounding mode does, as lrint. */
-inline long roundToLong(float v)
-{
-#if defined(__SSE__)
-	return _mm_cvtss_si32(_mm_set_ss(v));
-#else
-	return std::lrint(v);
-#endif
-}
-}  // namespace detail
-
 /** A submap column: the map's submap key without z. */
 struct ColumnKey
 {
@@ -386,7 +369,7 @@ class TreeLayer
 		static int16_t toFixed(float v)
 		{
 			return int16_t(
-			    detail::roundToLong(std::clamp(v, -32767.0f, 32767.0f)));
+			    core::roundToLong(std::clamp(v, -32767.0f, 32767.0f)));
 		}
 		/** A voxel of `count` points with these means. */
 		Voxel makeVoxel(uint64_t key, const Eigen::Vector3f& offset,
