@@ -125,7 +125,8 @@ TEST(LidarOdometry, StartPriorHoldsTheGyroOnlyWithinTheStartRadius)
 TEST(LidarOdometry, StartPriorKeysAreChecked)
 {
 	for (const char* bad :
-	     {"start_rotation_sigma_deg = -0.1", "start_radius_m = -5"})
+	     {"start_rotation_sigma_deg = -0.1", "start_radius_m = -5",
+	      "start_plane_spread_ratio = 1.5", "start_plane_spread_ratio = -1"})
 	{
 		auto cfg = core::TrackedConfig::fromText(
 		    std::string("[odometry]\n") + bad + "\n", "o.ini");
@@ -144,10 +145,12 @@ TEST(LidarOdometry, StartPriorKeysAreChecked)
 		}
 	}
 	auto ok = core::TrackedConfig::fromText(
-	    "[odometry]\nstart_rotation_sigma_deg = 0.1\nstart_radius_m = 5\n",
+	    "[odometry]\nstart_rotation_sigma_deg = 0.1\nstart_radius_m = 5\n"
+	    "start_plane_spread_ratio = 0.25\n",
 	    "o.ini");
 	odometry::OdometryOptions o;
 	o.loadFromConfigFile(ok, "odometry");
 	EXPECT_DOUBLE_EQ(o.start_rotation_sigma_deg, 0.1);
 	EXPECT_DOUBLE_EQ(o.start_radius_m, 5.0);
+	EXPECT_DOUBLE_EQ(o.start_plane_spread_ratio, 0.25);
 }

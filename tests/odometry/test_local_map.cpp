@@ -254,3 +254,57 @@ TEST(LocalMap, StemOptionsOutOfRangeAreRejected)
 		    << e.what();
 	}
 }
+
+namespace
+{
+/** Ground round a lidar at the origin, rough along the 8 m ring (±8 cm
+ * every 0.45 m) and flat across it, or flat (amplitude 0). */
+Eigen::Vector3f ground(double radius, double bearing_deg, double amplitude)
+{
+	const double s = 8.0 * bearing_deg * kDeg;  // arc length on the ring
+	return Eigen::Vector3f(float(radius * std::cos(bearing_deg * kDeg)),
+	                       float(radius * std::sin(bearing_deg * kDeg)),
+	                       float(amplitude * std::sin(2 * M_PI * s / 0.45)));
+}
+}  // namespace
+
+// Seen from one viewpoint, the ground's map points lie along rings. The
+// plane through one ring's neighbours holds the ring and the terrain's ups
+// and downs along it: a wall round the viewpoint, not the ground. A point
+// of the next scan, 10 cm further out after the lidar moved, is 10 cm off
+// that wall and would be pulled back towards the old viewpoint. With
+// min_plane_spread_ratio the ring is no plane; flat ground seen from
+// several places (rings 10 cm apart) still is.
+TEST(LocalMap, OneRingOfGroundIsNoPlane)
+{
+	LocalMapOptions o;
+	o.planar_spacing_m = 0.15;
+	o.coarse_voxel_m = 0;  // the k neighbours' plane alone
+	o.stem_model = false;
+	std::vector<Eigen::Vector3f> ring, rings;
+	for (double a = -10; a <= 10; a += 0.2)
+		ring.push_back(ground(8.0, a, 0.08));
+	for (double r = 7.5; r <= 8.5 + 1e-9; r += 0.1)
+		for (double a = -10; a <= 10; a += 0.2)
+			rings.push_back(ground(r, a, 0));
+	const Eigen::Vector3f x = ground(8.1, 1.0, 0.08);
+
+	RegistrationOptions ro;
+	EXPECT_EQ(ro.min_plane_spread_ratio, 0.0);
+	PlaneRow row;
+	MatchReach reach;
+	LocalMap one(o);
+	one.insert({}, ring);
+	ASSERT_TRUE(one.matchPlane(x, 0.3, ro, row, reach));
+	EXPECT_LT(std::abs(row.n.z()), 0.5) << "a wall";
+	EXPECT_NEAR(std::abs(residual(row, x)), 0.1, 0.02) << "pulled back 10 cm";
+
+	ro.min_plane_spread_ratio = 0.25;
+	EXPECT_FALSE(one.matchPlane(x, 0.3, ro, row, reach));
+	LocalMap several(o);
+	several.insert({}, rings);
+	const Eigen::Vector3f y = ground(8.1, 1.0, 0);
+	ASSERT_TRUE(several.matchPlane(y, 0.3, ro, row, reach));
+	EXPECT_GT(std::abs(row.n.z()), 0.99);
+	EXPECT_LT(std::abs(residual(row, y)), 0.001);
+}

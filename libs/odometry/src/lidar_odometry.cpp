@@ -23,6 +23,7 @@ void OdometryOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 	FS_LOAD(c, s, sweep_motion_without_imu);
 	FS_LOAD(c, s, start_rotation_sigma_deg);
 	FS_LOAD(c, s, start_radius_m);
+	FS_LOAD(c, s, start_plane_spread_ratio);
 	const std::string where = core::configOrigin(c) + ": [" + s + "] ";
 	if (prune_every_scans < 1)
 		throw core::ConfigError(where + "prune_every_scans must be >= 1");
@@ -39,6 +40,9 @@ void OdometryOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 		                        "start_rotation_sigma_deg: expected >= 0");
 	if (!(start_radius_m >= 0))
 		throw core::ConfigError(where + "start_radius_m: expected >= 0");
+	if (!(start_plane_spread_ratio >= 0 && start_plane_spread_ratio <= 1))
+		throw core::ConfigError(
+		    where + "start_plane_spread_ratio: expected 0 <= x <= 1");
 }
 
 void OdometryOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
@@ -55,6 +59,7 @@ void OdometryOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
 	c.write(s, "sweep_motion_without_imu", sweep_motion_without_imu);
 	c.write(s, "start_rotation_sigma_deg", start_rotation_sigma_deg);
 	c.write(s, "start_radius_m", start_radius_m);
+	c.write(s, "start_plane_spread_ratio", start_plane_spread_ratio);
 }
 
 namespace
@@ -392,6 +397,9 @@ OdometryStep LidarOdometry::processScan(const core::ScanPoints& scan)
 		    cfg_.odometry.start_rotation_sigma_deg > 0)
 			ropt.prior_rotation_sigma_deg =
 			    cfg_.odometry.start_rotation_sigma_deg;
+		if (!left_start_)
+			ropt.min_plane_spread_ratio =
+			    cfg_.odometry.start_plane_spread_ratio;
 		step.registration = registerFeatures(local_map_, cur.edges, cur.planar,
 		                                     predicted, ropt, priors);
 		if (scans_ == 1 && first_scan_)

@@ -646,7 +646,8 @@ bool LocalMap::matchPlane(const Eigen::Vector3f& x, double gate,
 	{
 		const Shape s = shapeOf(best);
 		if (s.ev[0] <= o.plane_flatness * s.ev[1] &&
-		    s.ev[1] >= o_.min_plane_spread_m * o_.min_plane_spread_m)
+		    s.ev[1] >= o_.min_plane_spread_m * o_.min_plane_spread_m &&
+		    s.ev[1] >= o.min_plane_spread_ratio * s.ev[2])
 		{
 			// The normal from the k neighbours, the plane through the nearest
 			// one: on a stem the neighbours' mean lies inside the curved

@@ -37,6 +37,11 @@ struct RegistrationOptions : public mrpt::config::CLoadableOptions
 	 * line_ratio. */
 	double plane_flatness = 0.1;
 	double line_ratio = 3.0;
+	/** A plane's neighbours must spread in two directions: middle
+	 * eigenvalue >= this fraction of the largest (0: any). Set by the
+	 * odometry near the start (OdometryOptions::start_plane_spread_ratio),
+	 * not an INI key of its own. */
+	double min_plane_spread_ratio = 0;
 	/** Motion-model prior (when the caller gives one): in directions the
 	 * geometry leaves unconstrained (a corridor, an open field) the pose
 	 * stays at the prediction instead of drifting; where the scan constrains

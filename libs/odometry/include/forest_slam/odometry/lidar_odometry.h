@@ -78,6 +78,15 @@ struct OdometryOptions : public mrpt::config::CLoadableOptions
 	 * yaw then came from later on): off in the shipped INIs. */
 	double start_rotation_sigma_deg = 0;
 	double start_radius_m = 5.0;
+	/** Within start_radius_m of the first scan, a planar match's k
+	 * neighbours must span a plane: the middle eigenvalue of their spread
+	 * at least this fraction of the largest (0: off). Seen from one
+	 * viewpoint, the ground's neighbours lie along one ring, and the
+	 * "plane" through a ring is a wall centred on that viewpoint (its tilt
+	 * set by the terrain's roughness), which pulls the lidar back towards
+	 * where it stood: the first 30 cm of motion lost 2-3 cm (forest-sim,
+	 * noise-free scans too), an offset the whole map kept. */
+	double start_plane_spread_ratio = 0;
 
 	void loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 	                        const std::string& section) override;
