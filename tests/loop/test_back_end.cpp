@@ -7,8 +7,12 @@
 #include <forest_slam/loop/back_end.h>
 #include <forest_slam/loop/keyframe_cloud.h>
 #include <gtest/gtest.h>
+#include <sys/resource.h>
 
+#include <csignal>
 #include <iostream>
+#include <stdexcept>
+#include <string>
 
 using namespace forest_slam::loop;
 using namespace forest_slam::loop::test;
@@ -147,6 +151,36 @@ TEST(BackEnd, SpilledKeyframeCloudsGiveTheSameClosures)
 	EXPECT_GE(accepted, 1u);
 	EXPECT_GT(spill->size(), 0u);
 	EXPECT_LT(bytes_spilled, bytes_memory / 2);
+}
+
+TEST(BackEnd, AWorkerFailureReachesTheCaller)
+{
+	// The keyframe clouds' spill file cannot grow (a full disk; here a file
+	// size limit): the worker's error reaches the caller as an exception
+	// naming the back-end, instead of an exception leaving the worker
+	// thread, which aborts the process and loses the run.
+	const auto stems = makeStems(5, 40);
+	const Walk w = circle(6, 0.2);
+	auto spill = std::make_shared<forest_slam::core::SpillFile>();
+	rlimit old{};
+	ASSERT_EQ(getrlimit(RLIMIT_FSIZE, &old), 0);
+	const auto old_handler = std::signal(SIGXFSZ, SIG_IGN);
+	rlimit small = old;
+	small.rlim_cur = 4096;
+	ASSERT_EQ(setrlimit(RLIMIT_FSIZE, &small), 0);
+	std::string what;
+	try
+	{
+		run(w, stems, options(), true, nullptr, spill);
+	}
+	catch (const std::runtime_error& e)
+	{
+		what = e.what();
+	}
+	setrlimit(RLIMIT_FSIZE, &old);
+	std::signal(SIGXFSZ, old_handler);
+	EXPECT_EQ(what.rfind("back-end: cannot write the spill file", 0), 0u)
+	    << what;
 }
 
 TEST(BackEnd, RefusesTheNeighbouringRowOfAPlantation)

@@ -6,6 +6,8 @@
 #include <chrono>
 #include <cmath>
 #include <ctime>
+#include <stdexcept>
+#include <string>
 
 namespace forest_slam::loop
 {
@@ -43,12 +45,26 @@ BackEnd::~BackEnd()
 	if (worker_.joinable()) worker_.join();
 }
 
+void BackEnd::rethrowLocked() const
+{
+	if (!error_) return;
+	try
+	{
+		std::rethrow_exception(error_);
+	}
+	catch (const std::exception& e)
+	{
+		throw std::runtime_error(std::string("back-end: ") + e.what());
+	}
+}
+
 size_t BackEnd::addKeyframe(Keyframe kf)
 {
 	Item it;
-	cloud_bytes_ += kf.cloud.capacity() * sizeof(Eigen::Vector3f);
 	{
 		std::lock_guard<std::mutex> lk(mutex_);
+		rethrowLocked();
+		cloud_bytes_ += kf.cloud.capacity() * sizeof(Eigen::Vector3f);
 		kf.id = next_id_++;
 		it.kf = std::move(kf);
 		if (threaded_) queue_.push_back(std::move(it));
@@ -71,6 +87,7 @@ void BackEnd::addGnss(const GnssFix& f)
 	}
 	{
 		std::lock_guard<std::mutex> lk(mutex_);
+		rethrowLocked();
 		queue_.push_back(std::move(it));
 	}
 	cv_.notify_all();
@@ -80,8 +97,9 @@ bool BackEnd::resultAt(size_t id, Poses& out)
 {
 	const auto t = std::chrono::steady_clock::now();
 	std::unique_lock<std::mutex> lk(mutex_);
-	cv_.wait(lk, [&] { return processed_ >= static_cast<long>(id); });
+	cv_.wait(lk, [&] { return processed_ >= static_cast<long>(id) || error_; });
 	wait_ms_ += msSince(t);
+	rethrowLocked();
 	auto it = results_.find(id);
 	if (it == results_.end()) return false;
 	out = std::move(it->second);
@@ -105,7 +123,21 @@ void BackEnd::run()
 			it = std::move(queue_.front());
 			queue_.pop_front();
 		}
-		process(it);
+		try
+		{
+			process(it);
+		}
+		catch (...)
+		{
+			// An exception leaving the thread would abort the process and
+			// lose the whole run: the caller gets it instead.
+			std::lock_guard<std::mutex> lk(mutex_);
+			error_ = std::current_exception();
+			queue_.clear();
+			stats_.worker_cpu_ms = threadCpuMs();
+			cv_.notify_all();
+			return;
+		}
 	}
 }
 
@@ -292,6 +324,8 @@ void BackEnd::finish()
 		}
 		cv_.notify_all();
 		if (worker_.joinable()) worker_.join();
+		std::lock_guard<std::mutex> lk(mutex_);
+		rethrowLocked();
 	}
 	if (stats_.closures > 0 || !graph_.gnss().empty()) optimise();
 	if (o_.level_with_imu && !graph_.hasEnu()) level();

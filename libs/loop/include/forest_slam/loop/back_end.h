@@ -17,6 +17,7 @@
 #include <atomic>
 #include <condition_variable>
 #include <deque>
+#include <exception>
 #include <map>
 #include <mutex>
 #include <optional>
@@ -68,7 +69,10 @@ class BackEnd
 	BackEnd& operator=(const BackEnd&) = delete;
 
 	/** Pipeline thread. `kf.odom_edge` must be set (identity for the
-	 * first); returns the keyframe id. */
+	 * first); returns the keyframe id. A failure on the worker (a spill
+	 * file that cannot be written, no memory) is thrown by the next call
+	 * of addKeyframe, addGnss, resultAt or finish, with "back-end: " before
+	 * its message; the worker takes nothing more. */
 	size_t addKeyframe(Keyframe kf);
 	void addGnss(const GnssFix& f);
 	/** Waits until keyframe `id` is processed; true with the optimised
@@ -110,6 +114,9 @@ class BackEnd
 	std::map<size_t, Poses> results_;
 	long processed_ = -1;  ///< last keyframe processed
 	bool stop_ = false;
+	std::exception_ptr error_;  ///< the worker's failure, for the caller
+	/** Throws the worker's failure (mutex_ held). */
+	void rethrowLocked() const;
 	size_t next_id_ = 0;
 	std::atomic<size_t> cloud_bytes_{0}, cloud_bytes_spilled_{0};
 	std::thread worker_;
