@@ -90,8 +90,11 @@ void SpillFile::writeAt(uint64_t at, const void* data, size_t bytes)
 		                           static_cast<off_t>(at + done));
 		if (n < 0 && errno == EINTR) continue;
 		if (n <= 0)
-			throw std::runtime_error("cannot write the spill file in '" + dir_ +
-			                         "': " + errorText());
+			throw std::runtime_error(
+			    "cannot write the spill file in '" + dir_ +
+			    "': " + errorText() +
+			    " (long runs keep far map parts there: free space there or "
+			    "choose another folder: $TMPDIR, [outputs] spill_dir)");
 		done += static_cast<size_t>(n);
 	}
 }
