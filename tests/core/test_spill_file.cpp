@@ -1,12 +1,12 @@
 // The scratch file of long runs: blobs read back as written, no name left
 // in the folder, a clear error for a folder that cannot take one.
+#include "../support/file_size_limit.h"
+
 #include <forest_slam/core/spill_file.h>
 #include <gtest/gtest.h>
 
-#include <sys/resource.h>
 #include <unistd.h>
 
-#include <csignal>
 #include <filesystem>
 #include <numeric>
 #include <string>
@@ -92,26 +92,20 @@ TEST(SpillFile, MissingFolderIsAClearError)
 
 TEST(SpillFile, AFullDiskIsAClearError)
 {
-	// A file size limit stands in for the full disk (SIGXFSZ ignored, so
-	// the write fails with EFBIG instead of killing the test).
 	core::SpillFile f;
-	rlimit old{};
-	ASSERT_EQ(getrlimit(RLIMIT_FSIZE, &old), 0);
-	const auto old_handler = std::signal(SIGXFSZ, SIG_IGN);
-	rlimit small = old;
-	small.rlim_cur = 4096;
-	ASSERT_EQ(setrlimit(RLIMIT_FSIZE, &small), 0);
 	std::string what;
-	try
 	{
-		f.appendVector(std::vector<char>(8192, 'x'));
+		const test::FileSizeLimit full_disk(4096);
+		ASSERT_TRUE(full_disk.ok());
+		try
+		{
+			f.appendVector(std::vector<char>(8192, 'x'));
+		}
+		catch (const std::runtime_error& e)
+		{
+			what = e.what();
+		}
 	}
-	catch (const std::runtime_error& e)
-	{
-		what = e.what();
-	}
-	setrlimit(RLIMIT_FSIZE, &old);
-	std::signal(SIGXFSZ, old_handler);
 	EXPECT_EQ(what.rfind("cannot write the spill file in '", 0), 0u) << what;
 	EXPECT_NE(what.find("$TMPDIR"), std::string::npos) << what;
 }

@@ -2,14 +2,13 @@
 // closed and the end error falls; in a regular plantation the closure that
 // would snap to the neighbouring row is refused; threaded and inline runs
 // give identical poses (determinism).
+#include "../support/file_size_limit.h"
 #include "synthetic_forest.h"
 
 #include <forest_slam/loop/back_end.h>
 #include <forest_slam/loop/keyframe_cloud.h>
 #include <gtest/gtest.h>
-#include <sys/resource.h>
 
-#include <csignal>
 #include <iostream>
 #include <stdexcept>
 #include <string>
@@ -162,23 +161,19 @@ TEST(BackEnd, AWorkerFailureReachesTheCaller)
 	const auto stems = makeStems(5, 40);
 	const Walk w = circle(6, 0.2);
 	auto spill = std::make_shared<forest_slam::core::SpillFile>();
-	rlimit old{};
-	ASSERT_EQ(getrlimit(RLIMIT_FSIZE, &old), 0);
-	const auto old_handler = std::signal(SIGXFSZ, SIG_IGN);
-	rlimit small = old;
-	small.rlim_cur = 4096;
-	ASSERT_EQ(setrlimit(RLIMIT_FSIZE, &small), 0);
 	std::string what;
-	try
 	{
-		run(w, stems, options(), true, nullptr, spill);
+		const forest_slam::test::FileSizeLimit full_disk(4096);
+		ASSERT_TRUE(full_disk.ok());
+		try
+		{
+			run(w, stems, options(), true, nullptr, spill);
+		}
+		catch (const std::runtime_error& e)
+		{
+			what = e.what();
+		}
 	}
-	catch (const std::runtime_error& e)
-	{
-		what = e.what();
-	}
-	setrlimit(RLIMIT_FSIZE, &old);
-	std::signal(SIGXFSZ, old_handler);
 	EXPECT_EQ(what.rfind("back-end: cannot write the spill file", 0), 0u)
 	    << what;
 }
