@@ -65,7 +65,7 @@ if lp:
         g = gt[i]; return g[1:4], g[4:8]
     def rel(a, b):
         qi = conj(a[1]); return rot(qi, [b[0][k] - a[0][k] for k in range(3)]), qmul(qi, b[1])
-    acc = bad = 0; worst = (0.0, 0.0)
+    acc = bad = 0; worst = (0.0, 0.0); yaws = []
     for c in csv.DictReader(open(d + "/loop_closures.csv")):
         if c["accepted"] != "1": continue
         acc += 1
@@ -74,9 +74,14 @@ if lp:
         e = rel(g, m)
         dm = math.sqrt(sum(x * x for x in e[0])); dd = 2 * math.degrees(math.acos(min(1, abs(e[1][3]))))
         worst = (max(worst[0], dm), max(worst[1], dd))
+        # Signed yaw error: a bias turns every later pass the same way.
+        x, y, z, w = e[1]
+        yaws.append(math.degrees(math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))))
         bad += dm > 0.5 or dd > 3
     line += (f"\n  {'':28s} {lp['keyframes']} keyframes, {lp['candidates']} candidates, {acc} closures "
-             f"({bad} false; worst {worst[0]:.3f} m {worst[1]:.2f} deg vs GT), worker "
+             f"({bad} false; worst {worst[0]:.3f} m {worst[1]:.2f} deg vs GT; yaw error mean "
+             f"{1e3 * sum(yaws) / max(1, len(yaws)):+.1f} mdeg, RMS "
+             f"{1e3 * math.sqrt(sum(v * v for v in yaws) / max(1, len(yaws))):.1f}), worker "
              f"{lp['verify_ms']/1e3:.1f} s verify + {lp['optimise_ms']/1e3:.2f} s optimise")
 print(line)
 PY

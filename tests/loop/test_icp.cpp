@@ -60,15 +60,37 @@ TEST_F(TwoViews, AWellSeededIcpSkipsTheShrinkingGates)
 	EXPECT_LT((truth.inverse() * off.T).translation().norm(), 0.03);
 }
 
-TEST(Icp, VoxelFilterKeepsOnePointPerVoxelWithinRange)
+TEST(Icp, VoxelFilterKeepsEachVoxelsCentroidWithinRange)
 {
 	std::vector<Eigen::Vector3f> p{{0.01f, 0.01f, 0.01f},
-	                               {0.02f, 0.02f, 0.02f},
+	                               {0.02f, 0.02f, 0.04f},
 	                               {-0.01f, 0.01f, 0.01f},
 	                               {50, 0, 0},
 	                               {NAN, 0, 0}};
 	const auto f = voxelFilter(p, 0.1, 40);
 	ASSERT_EQ(f.size(), 2u);  // the negative-x point is another voxel
-	EXPECT_FLOAT_EQ(f[0].x(), 0.01f);
+	EXPECT_FLOAT_EQ(f[0].x(), 0.015f);
+	EXPECT_FLOAT_EQ(f[0].z(), 0.025f);
 	EXPECT_FLOAT_EQ(f[1].x(), -0.01f);
+}
+
+TEST(Icp, VoxelFilterDoesNotShiftASweepAlongItsDirection)
+{
+	// A wall 5 m ahead, listed in firing order (the sweep runs along +y):
+	// the first point of each voxel is where the sweep entered it, half a
+	// voxel behind the rest on average; the centroids are not.
+	std::vector<Eigen::Vector3f> wall;
+	for (int row = 0; row < 16; row++)
+		for (int i = 0; i < 400; i++)
+			wall.emplace_back(5.0f, -2.0f + 0.01f * (i + 0.5f),
+			                  -0.5f + 0.0625f * row);
+	double mean_in = 0, mean_out = 0;
+	for (const auto& q : wall) mean_in += q.y();
+	mean_in /= wall.size();
+	const auto f = voxelFilter(wall, 0.25, 40);
+	ASSERT_EQ(f.size(), 16u * 4u);
+	for (const auto& q : f) mean_out += q.y();
+	mean_out /= f.size();
+	EXPECT_NEAR(mean_out, mean_in, 0.005);
+	for (const auto& q : f) EXPECT_FLOAT_EQ(q.x(), 5.0f);
 }

@@ -4,36 +4,50 @@
 #include <Eigen/Eigenvalues>
 #include <cmath>
 #include <cstdint>
-#include <unordered_set>
+#include <unordered_map>
 
 namespace forest_slam::loop
 {
 std::vector<Eigen::Vector3f> voxelFilter(
     const std::vector<Eigen::Vector3f>& pts, double voxel_m, double max_range_m)
 {
-	std::unordered_set<uint64_t> seen;
-	seen.reserve(pts.size());
-	std::vector<Eigen::Vector3f> out;
+	// The centroid of each voxel, not its first point: a scan lists its
+	// points in firing order, so the first point of a voxel is where the
+	// sweep entered it, and every voxel's point shifted the same way round
+	// the sensor. Loop closures between such clouds came out turned by
+	// +0.013 to +0.016 deg on average (forest-sim robot, 117 closures per
+	// run; doc/backend.md "Keyframe clouds: voxel centroids").
+	std::unordered_map<uint64_t, uint32_t> slot;
+	slot.reserve(pts.size());
+	std::vector<Eigen::Vector3d> sum;
+	std::vector<uint32_t> count;
 	const float r2 = static_cast<float>(max_range_m * max_range_m);
 	const double inv = 1.0 / voxel_m;
+	const uint64_t m = (1u << 21) - 1;
+	auto cell = [&](float v)
+	{
+		return static_cast<uint64_t>(
+		           static_cast<int64_t>(std::floor(v * inv))) &
+		       m;
+	};
 	for (const auto& p : pts)
 	{
 		if (!p.allFinite() || p.squaredNorm() > r2) continue;
-		const uint64_t m = (1u << 21) - 1;
 		const uint64_t key =
-		    ((static_cast<uint64_t>(
-		          static_cast<int64_t>(std::floor(p.x() * inv))) &
-		      m)
-		     << 42) |
-		    ((static_cast<uint64_t>(
-		          static_cast<int64_t>(std::floor(p.y() * inv))) &
-		      m)
-		     << 21) |
-		    (static_cast<uint64_t>(
-		         static_cast<int64_t>(std::floor(p.z() * inv))) &
-		     m);
-		if (seen.insert(key).second) out.push_back(p);
+		    (cell(p.x()) << 42) | (cell(p.y()) << 21) | cell(p.z());
+		const auto [it, fresh] =
+		    slot.try_emplace(key, static_cast<uint32_t>(sum.size()));
+		if (fresh)
+		{
+			sum.emplace_back(Eigen::Vector3d::Zero());
+			count.push_back(0);
+		}
+		sum[it->second] += p.cast<double>();
+		count[it->second]++;
 	}
+	std::vector<Eigen::Vector3f> out(sum.size());
+	for (size_t i = 0; i < sum.size(); i++)
+		out[i] = (sum[i] / count[i]).cast<float>();
 	return out;
 }
 

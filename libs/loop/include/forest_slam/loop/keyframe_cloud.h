@@ -7,9 +7,9 @@
 
 namespace forest_slam::loop
 {
-/** One point per occupied voxel (the first), points beyond `max_range_m`
- * from the origin and non-finite points dropped; output order follows the
- * input (deterministic). */
+/** One point per occupied voxel, the centroid of its points; points beyond
+ * `max_range_m` from the origin and non-finite points dropped; voxels in the
+ * order of their first point (deterministic). */
 std::vector<Eigen::Vector3f> voxelFilter(
     const std::vector<Eigen::Vector3f>& pts, double voxel_m,
     double max_range_m);
