@@ -21,6 +21,10 @@ void FeatureOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 	FS_LOAD(c, s, silhouette_gap_m);
 	FS_LOAD(c, s, edge_min_linearity);
 	FS_LOAD(c, s, planar_from_neighbours);
+	core::loadOption(c, s, "range_smoothing_half_window",
+	                 range_smoothing.half_window);
+	core::loadOption(c, s, "range_smoothing_max_step_m",
+	                 range_smoothing.max_step_m);
 	const std::string where = core::configOrigin(c) + ": [" + s + "] ";
 	if (half_window < 1 || half_window > 20)
 		throw core::ConfigError(where + "half_window must be in [1, 20]");
@@ -35,6 +39,12 @@ void FeatureOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 		throw core::ConfigError(where + "edge_min_linearity must be in [0, 1)");
 	if (ground_decimation < 1)
 		throw core::ConfigError(where + "ground_decimation must be >= 1");
+	if (range_smoothing.half_window < 0 || range_smoothing.half_window > 20)
+		throw core::ConfigError(
+		    where + "range_smoothing_half_window must be in [0, 20]");
+	if (!(range_smoothing.max_step_m > 0))
+		throw core::ConfigError(where +
+		                        "range_smoothing_max_step_m must be > 0");
 }
 
 void FeatureOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
@@ -50,6 +60,8 @@ void FeatureOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
 	c.write(s, "silhouette_gap_m", silhouette_gap_m);
 	c.write(s, "edge_min_linearity", edge_min_linearity);
 	c.write(s, "planar_from_neighbours", planar_from_neighbours);
+	c.write(s, "range_smoothing_half_window", range_smoothing.half_window);
+	c.write(s, "range_smoothing_max_step_m", range_smoothing.max_step_m);
 }
 
 namespace
@@ -87,26 +99,44 @@ inline uint32_t scatterHash(uint32_t x)
 }
 }  // namespace
 
+RingLines ringLines(const std::vector<FeatureInputPoint>& pts)
+{
+	RingLines out;
+	int max_ring = -1;
+	for (const auto& p : pts) max_ring = std::max<int>(max_ring, p.ring);
+	// A counting sort by ring keeps the input order within a ring, which is
+	// firing order for an unpacked scan (checked below; sorted only if not).
+	out.start.assign(max_ring + 2, 0);
+	out.index.resize(pts.size());
+	for (const auto& p : pts)
+		if (p.xyz.allFinite()) out.start[p.ring + 1]++;
+	for (int r = 0; r <= max_ring; r++) out.start[r + 1] += out.start[r];
+	out.index.resize(out.start.back());
+	std::vector<uint32_t> pos(out.start.begin(), out.start.end() - 1);
+	for (uint32_t i = 0; i < pts.size(); i++)
+		if (pts[i].xyz.allFinite()) out.index[pos[pts[i].ring]++] = i;
+	auto byColumn = [&](uint32_t a, uint32_t b)
+	{ return pts[a].column < pts[b].column; };
+	for (int r = 0; r <= max_ring; r++)
+	{
+		uint32_t* line = out.index.data() + out.start[r];
+		uint32_t* end = out.index.data() + out.start[r + 1];
+		if (!std::is_sorted(line, end, byColumn))
+			std::stable_sort(line, end, byColumn);
+	}
+	return out;
+}
+
 Features extractFeatures(const std::vector<FeatureInputPoint>& pts,
                          const FeatureOptions& o)
 {
 	Features out;
 	out.smoothness.assign(pts.size(), -1.f);
 	if (pts.empty()) return out;
-	int max_ring = 0;
-	for (const auto& p : pts) max_ring = std::max<int>(max_ring, p.ring);
-	// Ring lines ordered by firing column: a counting sort by ring keeps
-	// the input order within a ring, which is firing order for an unpacked
-	// scan (checked below; sorted only if not).
-	std::vector<uint32_t> ring_start(max_ring + 2, 0), line_of(pts.size());
-	for (const auto& p : pts)
-		if (p.xyz.allFinite()) ring_start[p.ring + 1]++;
-	for (int r = 0; r <= max_ring; r++) ring_start[r + 1] += ring_start[r];
-	{
-		std::vector<uint32_t> pos(ring_start.begin(), ring_start.end() - 1);
-		for (uint32_t i = 0; i < pts.size(); i++)
-			if (pts[i].xyz.allFinite()) line_of[pos[pts[i].ring]++] = i;
-	}
+	RingLines lines = ringLines(pts);
+	const int max_ring = lines.rings() - 1;
+	const std::vector<uint32_t>& ring_start = lines.start;
+	std::vector<uint32_t>& line_of = lines.index;
 
 	// Shape of every cluster: edges only on linear ones (stems, branches);
 	// the scattered returns of a shrub or foliage look sharp to the
@@ -176,10 +206,6 @@ Features extractFeatures(const std::vector<FeatureInputPoint>& pts,
 	{
 		uint32_t* line = line_of.data() + ring_start[ring];
 		const int n = static_cast<int>(ring_start[ring + 1] - ring_start[ring]);
-		auto byColumn = [&](uint32_t a, uint32_t b)
-		{ return pts[a].column < pts[b].column; };
-		if (!std::is_sorted(line, line + n, byColumn))
-			std::stable_sort(line, line + n, byColumn);
 		R.resize(n);
 		for (int k = 0; k < n; k++)
 		{

@@ -1,5 +1,6 @@
 #include <forest_slam/core/config.h>
 #include <forest_slam/core/log.h>
+#include <forest_slam/features/range_smoothing.h>
 #include <forest_slam/odometry/degeneracy.h>
 #include <forest_slam/odometry/lidar_odometry.h>
 
@@ -250,16 +251,17 @@ LidarOdometry::Prepared LidarOdometry::prepare(
 	// Features for registration; the decision factor of every point for the
 	// map insertion.
 	out.feats = features::extractFeatures(fin, cfg_.features);
+	out.matched = features::smoothRanges(fin, cfg_.features.range_smoothing);
 	const float inv_sweep =
 	    1.0f / static_cast<float>(std::max(1e-6, motion.sweep_s));
 	for (auto i : out.feats.edges)
 	{
-		out.edges.push_back(fin[i].xyz);
+		out.edges.push_back(out.matched[i]);
 		out.edge_fraction.push_back(std::clamp(times[i] * inv_sweep, 0.f, 1.f));
 	}
 	for (auto i : out.feats.planar)
 	{
-		out.planar.push_back(fin[i].xyz);
+		out.planar.push_back(out.matched[i]);
 		out.planar_fraction.push_back(
 		    std::clamp(times[i] * inv_sweep, 0.f, 1.f));
 	}
@@ -272,16 +274,20 @@ void LidarOdometry::insert(const Prepared& s, const Eigen::Isometry3d& pose)
 	// The whole deskewed scan, not only the selected features, split by its
 	// decision factor into the edge and planar clouds (§4.5); the voxel
 	// filters keep the map small.
-	std::vector<Eigen::Vector3f> map_edges, map_planar;
+	std::vector<Eigen::Vector3f> map_edges, map_planar, local_edges,
+	    local_planar;
 	for (size_t i = 0; i < s.points.size(); i++)
-		(s.feats.smoothness[i] > cfg_.features.edge_threshold ? map_edges
-		                                                      : map_planar)
-		    .push_back(s.points[i].xyz);
-	// The odometry's local map in the map frame, and the CForestMap with the
-	// sensor-frame points, each on its worker thread.
+	{
+		const bool edge = s.feats.smoothness[i] > cfg_.features.edge_threshold;
+		(edge ? map_edges : map_planar).push_back(s.points[i].xyz);
+		(edge ? local_edges : local_planar).push_back(s.matched[i]);
+	}
+	// The odometry's local map in the map frame (the positions it matches
+	// with), and the CForestMap with the measured sensor-frame points, each
+	// on its worker thread.
 	local_worker_.push(
-	    [this, T = Eigen::Isometry3f(pose.cast<float>()), e = map_edges,
-	     p = map_planar]() mutable
+	    [this, T = Eigen::Isometry3f(pose.cast<float>()),
+	     e = std::move(local_edges), p = std::move(local_planar)]() mutable
 	    {
 		    for (auto& x : e) x = T * x;
 		    for (auto& x : p) x = T * x;

@@ -15,6 +15,18 @@
 
 namespace forest_slam::features
 {
+/** Range smoothing along the rings (range_smoothing.h). */
+struct RangeSmoothingOptions
+{
+	/** Firings each side (0 = off): the window is 2 h + 1 consecutive
+	 * firings of one ring. 2: the best of 2, 3 and 4 over ten forest-sim
+	 * worlds (doc/odometry.md). */
+	int half_window = 2;
+	/** Neighbours in a run: the same cluster (or both ground), adjacent
+	 * columns, ranges less than this apart [m]. */
+	double max_step_m = 0.3;
+};
+
 struct FeatureOptions : public mrpt::config::CLoadableOptions
 {
 	int half_window = 5;  ///< neighbours each side (same ring, same cluster)
@@ -44,6 +56,11 @@ struct FeatureOptions : public mrpt::config::CLoadableOptions
 	 * noise"). A planar point's own smoothness must still be below
 	 * planar_threshold (outliers); edges keep the point's own smoothness. */
 	bool planar_from_neighbours = true;
+	/** Ranges smoothed along the rings for the odometry's matching and
+	 * local map (range_smoothing.h; the features are chosen on the
+	 * measured ranges). INI keys range_smoothing_half_window,
+	 * range_smoothing_max_step_m. */
+	RangeSmoothingOptions range_smoothing;
 
 	void loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 	                        const std::string& section) override;
@@ -67,6 +84,16 @@ struct Features
 	std::vector<uint32_t> planar;   ///< indices into the input
 	std::vector<float> smoothness;  ///< per input point, -1 if not computed
 };
+
+/** A scan's finite points grouped by ring, each ring in firing (column)
+ * order: ring r's points are index[start[r]] .. index[start[r + 1] - 1]. */
+struct RingLines
+{
+	std::vector<uint32_t> start;  ///< rings() + 1 offsets into index
+	std::vector<uint32_t> index;  ///< into the input points
+	int rings() const { return static_cast<int>(start.size()) - 1; }
+};
+RingLines ringLines(const std::vector<FeatureInputPoint>& pts);
 
 /** LOAM smoothness |sum_j (X_j - X_i)| / (|S| |X_i|) over the same-ring,
  * same-cluster window. */

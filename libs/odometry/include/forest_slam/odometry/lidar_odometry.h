@@ -216,6 +216,10 @@ class LidarOdometry
 	{
 		std::vector<features::FeatureInputPoint> points;
 		features::Features feats;
+		/** Each point's position for matching and the local map: its range
+		 * smoothed along the ring (features/range_smoothing.h). The
+		 * CForestMap and the tree layer get the points as measured. */
+		std::vector<Eigen::Vector3f> matched;
 		std::vector<Eigen::Vector3f> edges, planar;  ///< selected features
 		/** Firing time of each selected feature as a fraction of the
 		 * sweep. */
