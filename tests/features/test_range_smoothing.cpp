@@ -147,13 +147,13 @@ TEST(RangeSmoothing, RunsStopAtClustersGapsAndSteps)
 		return false;
 	};
 	// Runs: [0, 9], [10, 19], [21, 25], [26, 30] on ring 0; [0, 19],
-	// [21, 30] on the ground ring. Only points 2 firings from both ends.
+	// [21, 30] on the ground ring. All points but the runs' ends.
 	for (int c = 0; c <= 30; c++)
 	{
 		if (c == 20) continue;
-		const bool inner0 =
-		    (c >= 2 && c <= 7) || (c >= 12 && c <= 17) || c == 23 || c == 28;
-		const bool inner1 = (c >= 2 && c <= 17) || (c >= 23 && c <= 28);
+		const bool inner0 = (c >= 1 && c <= 8) || (c >= 11 && c <= 18) ||
+		                    (c >= 22 && c <= 24) || (c >= 27 && c <= 29);
+		const bool inner1 = (c >= 1 && c <= 18) || (c >= 22 && c <= 29);
 		EXPECT_EQ(moved(c, 0), inner0) << "column " << c;
 		EXPECT_EQ(moved(c, 1), inner1) << "ground column " << c;
 	}

@@ -1,20 +1,29 @@
 #include <forest_slam/features/range_smoothing.h>
 
+#include <algorithm>
 #include <cmath>
 
 namespace forest_slam::features
 {
 namespace
 {
-/** Weights of the centre of a quadratic least-squares fit over 2h+1 equally
- * spaced samples (Savitzky-Golay): w_j for offsets 0..h. */
-std::vector<float> savitzkyGolayQuadratic(int h)
+/** Weights of a quadratic least-squares fit over 2h+1 equally spaced
+ * samples (Savitzky-Golay), evaluated at offset x from the window's
+ * centre: w[x + h][t + h] for the sample at offset t. At x = 0 the classic
+ * smoothing weights (h = 2: -3 12 17 12 -3, /35). */
+std::vector<std::vector<float>> savitzkyGolayQuadratic(int h)
 {
-	std::vector<float> w(h + 1);
-	const double den = (2.0 * h - 1) * (2.0 * h + 1) * (2.0 * h + 3);
-	for (int j = 0; j <= h; j++)
-		w[j] = static_cast<float>(
-		    (3.0 * (3.0 * h * h + 3.0 * h - 1) - 15.0 * j * j) / den);
+	// Orthogonal polynomials on t = -h..h: 1, t, t^2 - c.
+	const double n = 2.0 * h + 1;
+	double s2 = 0, s4 = 0;
+	for (int t = -h; t <= h; t++) s2 += t * t;
+	const double c = s2 / n;
+	for (int t = -h; t <= h; t++) s4 += (t * t - c) * (t * t - c);
+	std::vector<std::vector<float>> w(2 * h + 1, std::vector<float>(2 * h + 1));
+	for (int x = -h; x <= h; x++)
+		for (int t = -h; t <= h; t++)
+			w[x + h][t + h] = static_cast<float>(
+			    1 / n + x * t / s2 + (x * x - c) * (t * t - c) / s4);
 	return w;
 }
 
@@ -35,7 +44,7 @@ std::vector<Eigen::Vector3f> smoothRanges(
 	for (size_t i = 0; i < pts.size(); i++) out[i] = pts[i].xyz;
 	const int h = o.half_window;
 	if (h <= 0 || pts.empty()) return out;
-	const std::vector<float> w = savitzkyGolayQuadratic(h);
+	const auto w = savitzkyGolayQuadratic(h);
 	const float max_step = static_cast<float>(o.max_step_m);
 	const RingLines lines = ringLines(pts);
 	std::vector<float> range;
@@ -46,21 +55,27 @@ std::vector<Eigen::Vector3f> smoothRanges(
 		    static_cast<int>(lines.start[ring + 1] - lines.start[ring]);
 		range.resize(n);
 		for (int k = 0; k < n; k++) range[k] = pts[line[k]].xyz.norm();
-		// Runs of the same object; the points at least h from both ends.
+		// Runs of the same object. Every point but the run's two ends, on
+		// the window of 2h+1 firings centred on it, or moved inwards near
+		// an end (the fit evaluated off-centre: at one firing from the
+		// centre the variance is even lower, 0.37 against 0.49 for h = 2).
 		int run_start = 0;
 		for (int k = 1; k <= n; k++)
 		{
 			if (k < n && sameRun(pts[line[k - 1]], pts[line[k]], range[k - 1],
 			                     range[k], max_step))
 				continue;
-			for (int m = run_start + h; m + h < k; m++)
-			{
-				float r = w[0] * range[m];
-				for (int j = 1; j <= h; j++)
-					r += w[j] * (range[m - j] + range[m + j]);
-				if (range[m] > 0 && r > 0)
-					out[line[m]] = pts[line[m]].xyz * (r / range[m]);
-			}
+			if (k - run_start >= 2 * h + 1)
+				for (int m = run_start + 1; m + 1 < k; m++)
+				{
+					const int centre = std::clamp(m, run_start + h, k - 1 - h);
+					const std::vector<float>& wx = w[m - centre + h];
+					float r = 0;
+					for (int t = -h; t <= h; t++)
+						r += wx[t + h] * range[centre + t];
+					if (range[m] > 0 && r > 0)
+						out[line[m]] = pts[line[m]].xyz * (r / range[m]);
+				}
 			run_start = k;
 		}
 	}

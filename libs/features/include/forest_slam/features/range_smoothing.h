@@ -17,10 +17,12 @@
 namespace forest_slam::features
 {
 /** Each point's position with its range smoothed along its ring, in the
- * input's order and frame (the direction is kept). A point keeps its
- * range unless h neighbours on each side lie in its run: the ends of a run
- * (a stem's silhouette) are not extrapolated. Non-finite points and points
- * of no cluster are returned unchanged. */
+ * input's order and frame (the direction is kept). A run (consecutive
+ * firings on one object) of at least 2h+1 points is smoothed but for its
+ * two ends (a stem's silhouette is not extrapolated); a point fewer than h
+ * firings from an end takes the fit of the window moved inwards. Shorter
+ * runs, non-finite points and points of no cluster are returned
+ * unchanged. */
 std::vector<Eigen::Vector3f> smoothRanges(
     const std::vector<FeatureInputPoint>& pts, const RangeSmoothingOptions& o);
 
