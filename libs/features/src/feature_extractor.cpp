@@ -107,7 +107,6 @@ RingLines ringLines(const std::vector<FeatureInputPoint>& pts)
 	// A counting sort by ring keeps the input order within a ring, which is
 	// firing order for an unpacked scan (checked below; sorted only if not).
 	out.start.assign(max_ring + 2, 0);
-	out.index.resize(pts.size());
 	for (const auto& p : pts)
 		if (p.xyz.allFinite()) out.start[p.ring + 1]++;
 	for (int r = 0; r <= max_ring; r++) out.start[r + 1] += out.start[r];
@@ -130,13 +129,18 @@ RingLines ringLines(const std::vector<FeatureInputPoint>& pts)
 Features extractFeatures(const std::vector<FeatureInputPoint>& pts,
                          const FeatureOptions& o)
 {
+	return extractFeatures(pts, ringLines(pts), o);
+}
+
+Features extractFeatures(const std::vector<FeatureInputPoint>& pts,
+                         const RingLines& lines, const FeatureOptions& o)
+{
 	Features out;
 	out.smoothness.assign(pts.size(), -1.f);
 	if (pts.empty()) return out;
-	RingLines lines = ringLines(pts);
 	const int max_ring = lines.rings() - 1;
 	const std::vector<uint32_t>& ring_start = lines.start;
-	std::vector<uint32_t>& line_of = lines.index;
+	const std::vector<uint32_t>& line_of = lines.index;
 
 	// Shape of every cluster: edges only on linear ones (stems, branches);
 	// the scattered returns of a shrub or foliage look sharp to the
@@ -204,7 +208,7 @@ Features extractFeatures(const std::vector<FeatureInputPoint>& pts,
 	std::vector<float> planar_rank;
 	for (int ring = 0; ring <= max_ring; ring++)
 	{
-		uint32_t* line = line_of.data() + ring_start[ring];
+		const uint32_t* line = line_of.data() + ring_start[ring];
 		const int n = static_cast<int>(ring_start[ring + 1] - ring_start[ring]);
 		R.resize(n);
 		for (int k = 0; k < n; k++)

@@ -40,13 +40,25 @@ bool sameRun(const FeatureInputPoint& a, const FeatureInputPoint& b, float ra,
 std::vector<Eigen::Vector3f> smoothRanges(
     const std::vector<FeatureInputPoint>& pts, const RangeSmoothingOptions& o)
 {
+	if (o.half_window <= 0 || pts.empty())
+	{
+		std::vector<Eigen::Vector3f> out(pts.size());
+		for (size_t i = 0; i < pts.size(); i++) out[i] = pts[i].xyz;
+		return out;
+	}
+	return smoothRanges(pts, ringLines(pts), o);
+}
+
+std::vector<Eigen::Vector3f> smoothRanges(
+    const std::vector<FeatureInputPoint>& pts, const RingLines& lines,
+    const RangeSmoothingOptions& o)
+{
 	std::vector<Eigen::Vector3f> out(pts.size());
 	for (size_t i = 0; i < pts.size(); i++) out[i] = pts[i].xyz;
 	const int h = o.half_window;
 	if (h <= 0 || pts.empty()) return out;
 	const auto w = savitzkyGolayQuadratic(h);
 	const float max_step = static_cast<float>(o.max_step_m);
-	const RingLines lines = ringLines(pts);
 	std::vector<float> range;
 	for (int ring = 0; ring < lines.rings(); ring++)
 	{

@@ -250,8 +250,10 @@ LidarOdometry::Prepared LidarOdometry::prepare(
 
 	// Features for registration; the decision factor of every point for the
 	// map insertion.
-	out.feats = features::extractFeatures(fin, cfg_.features);
-	out.matched = features::smoothRanges(fin, cfg_.features.range_smoothing);
+	const features::RingLines rings = features::ringLines(fin);
+	out.feats = features::extractFeatures(fin, rings, cfg_.features);
+	out.matched =
+	    features::smoothRanges(fin, rings, cfg_.features.range_smoothing);
 	const float inv_sweep =
 	    1.0f / static_cast<float>(std::max(1e-6, motion.sweep_s));
 	for (auto i : out.feats.edges)

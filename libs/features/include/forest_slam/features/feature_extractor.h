@@ -99,5 +99,8 @@ RingLines ringLines(const std::vector<FeatureInputPoint>& pts);
  * same-cluster window. */
 Features extractFeatures(const std::vector<FeatureInputPoint>& pts,
                          const FeatureOptions& opts = FeatureOptions());
+/** The same, with the scan's ring lines already built (ringLines(pts)). */
+Features extractFeatures(const std::vector<FeatureInputPoint>& pts,
+                         const RingLines& lines, const FeatureOptions& opts);
 
 }  // namespace forest_slam::features

@@ -25,5 +25,9 @@ namespace forest_slam::features
  * unchanged. */
 std::vector<Eigen::Vector3f> smoothRanges(
     const std::vector<FeatureInputPoint>& pts, const RangeSmoothingOptions& o);
+/** The same, with the scan's ring lines already built (ringLines(pts)). */
+std::vector<Eigen::Vector3f> smoothRanges(
+    const std::vector<FeatureInputPoint>& pts, const RingLines& lines,
+    const RangeSmoothingOptions& o);
 
 }  // namespace forest_slam::features
