@@ -1,3 +1,4 @@
+#include <forest_slam/core/flat_hash_map.h>
 #include <forest_slam/loop/keyframe_cloud.h>
 #include <forest_slam/odometry/kdtree.h>
 
@@ -28,18 +29,13 @@ std::vector<Eigen::Vector3f> voxelFilter(
 	std::vector<uint32_t> count;
 	const float r2 = static_cast<float>(max_range_m * max_range_m);
 	const double inv = 1.0 / voxel_m;
-	const uint64_t m = (1u << 21) - 1;
 	auto cell = [&](float v)
-	{
-		return static_cast<uint64_t>(
-		           static_cast<int64_t>(std::floor(v * inv))) &
-		       m;
-	};
+	{ return static_cast<int64_t>(std::floor(v * inv)); };
 	for (const auto& p : pts)
 	{
 		if (!p.allFinite() || p.squaredNorm() > r2) continue;
 		const uint64_t key =
-		    (cell(p.x()) << 42) | (cell(p.y()) << 21) | cell(p.z());
+		    core::packCellKey(cell(p.x()), cell(p.y()), cell(p.z()));
 		const auto [it, fresh] =
 		    slot.try_emplace(key, static_cast<uint32_t>(sum.size()));
 		if (fresh)
