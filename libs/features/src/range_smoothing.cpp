@@ -40,13 +40,10 @@ bool sameRun(const FeatureInputPoint& a, const FeatureInputPoint& b, float ra,
 std::vector<Eigen::Vector3f> smoothRanges(
     const std::vector<FeatureInputPoint>& pts, const RangeSmoothingOptions& o)
 {
-	if (o.half_window <= 0 || pts.empty())
-	{
-		std::vector<Eigen::Vector3f> out(pts.size());
-		for (size_t i = 0; i < pts.size(); i++) out[i] = pts[i].xyz;
-		return out;
-	}
-	return smoothRanges(pts, ringLines(pts), o);
+	// Off: no ring lines needed (the overload returns the points as
+	// measured before reading them).
+	return smoothRanges(pts, o.half_window > 0 ? ringLines(pts) : RingLines{},
+	                    o);
 }
 
 std::vector<Eigen::Vector3f> smoothRanges(
