@@ -159,7 +159,9 @@ bool refineCircleGeometric(const Points2D& p, Circle& c, double min_scale_m,
 		}
 		const double s = std::max(1.4826 * medianAbs(r, buf), min_scale_m);
 		double cost = 0;
-		Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
+		// The lower triangle of H (all the LDLT reads), summed in scalars:
+		// the 3x3 outer products were a tenth of the fit.
+		double hxx = 0, hyx = 0, hyy = 0, hrx = 0, hry = 0, hrr = 0;
 		Eigen::Vector3d g = Eigen::Vector3d::Zero();
 		for (size_t i = 0; i < p.size(); i++)
 		{
@@ -168,10 +170,14 @@ bool refineCircleGeometric(const Points2D& p, Circle& c, double min_scale_m,
 			if (w == 0) continue;
 			const Eigen::Vector2d d = p[i] - cur.centre;
 			const double n = std::max(dist[i], 1e-12);
-			const Eigen::Vector3d J(-d.x() / n, -d.y() / n, -1.0);
-			H += w * J * J.transpose();
-			g += w * J * r[i];
+			const double jx = -d.x() / n, jy = -d.y() / n;
+			const double wx = w * jx, wy = w * jy;
+			hxx += wx * jx, hyx += wy * jx, hyy += wy * jy;
+			hrx -= w * jx, hry -= w * jy, hrr += w;
+			g += Eigen::Vector3d(wx * r[i], wy * r[i], -w * r[i]);
 		}
+		Eigen::Matrix3d H;
+		H << hxx, hyx, hrx, hyx, hyy, hry, hrx, hry, hrr;
 		// Levenberg–Marquardt step on the IRLS quadratic model (scale fixed).
 		bool improved = false;
 		for (int tries = 0; tries < 10 && !improved; tries++)

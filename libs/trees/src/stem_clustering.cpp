@@ -100,32 +100,57 @@ std::vector<std::vector<size_t>> mergeLeavesByNeighbourhood(
 	std::vector<int> parent(n_leaves);
 	std::iota(parent.begin(), parent.end(), 0);
 	// Exact pairs within link_m lie in the same or adjacent link_m squares.
-	// Only pairs of points from different leaves matter, and most squares
-	// hold one leaf only, so the squares are compared, not searched.
-	std::vector<std::tuple<int64_t, int64_t, size_t>> keyed;
+	// Within a square the points are grouped by leaf: two groups whose
+	// leaves are joined already are skipped whole, and the first pair within
+	// link_m joins them (the clusters are the connected leaves, found in any
+	// order). The squares are keyed by (x, y) packed in one word (offset
+	// binary: the order of the pair).
+	struct Keyed
+	{
+		uint64_t square;
+		int leaf;
+		uint32_t i;
+		bool operator<(const Keyed& o) const
+		{
+			return std::tie(square, leaf, i) < std::tie(o.square, o.leaf, o.i);
+		}
+	};
+	auto cellOf = [&](double v) { return int64_t(std::floor(v / link_m)); };
+	auto pack = [](int64_t x, int64_t y)
+	{
+		return uint64_t(uint32_t(int32_t(x)) ^ 0x80000000u) << 32 |
+		       uint64_t(uint32_t(int32_t(y)) ^ 0x80000000u);
+	};
+	std::vector<Keyed> keyed;
 	keyed.reserve(p.size());
 	for (size_t i = 0; i < p.size(); i++)
-		keyed.emplace_back(int64_t(std::floor(p[i].x() / link_m)),
-		                   int64_t(std::floor(p[i].y() / link_m)), i);
+		keyed.push_back(
+		    {pack(cellOf(p[i].x()), cellOf(p[i].y())), leaf[i], uint32_t(i)});
 	std::sort(keyed.begin(), keyed.end());
+	struct Group  // the points of one leaf in one square
+	{
+		int leaf;
+		size_t begin, end;  // in keyed
+	};
 	struct Square
 	{
 		int64_t x, y;
-		size_t begin, end;
-		bool one_leaf;
+		size_t begin, end;  // in groups
 	};
+	std::vector<Group> groups;
 	std::vector<Square> sq;
-	for (size_t j = 0; j < keyed.size();)
+	for (size_t j = 0; j < keyed.size(); j++)
 	{
-		const auto [x, y, i0] = keyed[j];
-		size_t k = j;
-		bool one = true;
-		for (; k < keyed.size() && std::get<0>(keyed[k]) == x &&
-		       std::get<1>(keyed[k]) == y;
-		     k++)
-			one = one && leaf[std::get<2>(keyed[k])] == leaf[i0];
-		sq.push_back({x, y, j, k, one});
-		j = k;
+		if (j == 0 || keyed[j].square != keyed[j - 1].square)
+		{
+			const auto& q = p[keyed[j].i];
+			sq.push_back({cellOf(q.x()), cellOf(q.y()), groups.size(), 0});
+		}
+		if (groups.empty() || keyed[j].square != keyed[j - 1].square ||
+		    keyed[j].leaf != keyed[j - 1].leaf)
+			groups.push_back({keyed[j].leaf, j, j});
+		groups.back().end = j + 1;
+		sq.back().end = groups.size();
 	}
 	auto findSquare = [&](int64_t x, int64_t y) -> const Square*
 	{
@@ -136,6 +161,14 @@ std::vector<std::vector<size_t>> mergeLeavesByNeighbourhood(
 		return it != sq.end() && it->x == x && it->y == y ? &*it : nullptr;
 	};
 	const double link2 = link_m * link_m;
+	auto linked = [&](const Group& ga, const Group& gb)
+	{
+		for (size_t u = ga.begin; u < ga.end; u++)
+			for (size_t v = gb.begin; v < gb.end; v++)
+				if ((p[keyed[u].i] - p[keyed[v].i]).squaredNorm() <= link2)
+					return true;
+		return false;
+	};
 	for (const auto& a : sq)
 		for (int dx = 0; dx <= 1; dx++)
 			for (int dy = -1; dy <= 1; dy++)
@@ -144,24 +177,16 @@ std::vector<std::vector<size_t>> mergeLeavesByNeighbourhood(
 				const Square* b =
 				    dx == 0 && dy == 0 ? &a : findSquare(a.x + dx, a.y + dy);
 				if (!b) continue;
-				if (a.one_leaf && b->one_leaf &&
-				    findRoot(parent, leaf[std::get<2>(keyed[a.begin])]) ==
-				        findRoot(parent, leaf[std::get<2>(keyed[b->begin])]))
-					continue;
-				for (size_t u = a.begin; u < a.end; u++)
-				{
-					const size_t i = std::get<2>(keyed[u]);
-					for (size_t v = (b == &a ? u + 1 : b->begin); v < b->end;
-					     v++)
+				for (size_t ia = a.begin; ia < a.end; ia++)
+					for (size_t ib = (b == &a ? ia + 1 : b->begin); ib < b->end;
+					     ib++)
 					{
-						const size_t j = std::get<2>(keyed[v]);
-						if (leaf[i] == leaf[j]) continue;
-						const int ra = findRoot(parent, leaf[i]),
-						          rb = findRoot(parent, leaf[j]);
-						if (ra != rb && (p[i] - p[j]).squaredNorm() <= link2)
-							parent[ra] = rb;
+						const Group &ga = groups[ia], &gb = groups[ib];
+						if (ga.leaf == gb.leaf) continue;
+						const int ra = findRoot(parent, ga.leaf),
+						          rb = findRoot(parent, gb.leaf);
+						if (ra != rb && linked(ga, gb)) parent[ra] = rb;
 					}
-				}
 			}
 	std::vector<int> slot(n_leaves, -1);
 	for (size_t i = 0; i < p.size(); i++)

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <random>
 #include <stdexcept>
 
@@ -111,20 +112,34 @@ CircleFitResult findRing(const Points2D& p, const TreeOptions& o, double rmin,
 	std::mt19937 rng(o.seed);
 	std::uniform_int_distribution<size_t> pick(0, p.size() - 1);
 	const double tol = o.ransac_inlier_m;
-	auto score = [&](const Circle& c, Points2D* ring)
+	// On squared distances (no root per point). A candidate stops being
+	// scored once it cannot beat `beat` any more, even with every point left
+	// on its ring (the score it returns then is `beat`): most samples are
+	// through clutter and stop early.
+	const long n_pts = long(p.size());
+	auto score = [&](const Circle& c, Points2D* ring,
+	                 long beat = std::numeric_limits<long>::min())
 	{
 		long on = 0, inside = 0;
 		const double inner = c.radius_m - std::max(3 * tol, 0.3 * c.radius_m);
-		for (const auto& q : p)
+		const double inner2 = inner > 0 ? inner * inner : -1;
+		auto sq = [](double v) { return v * v; };
+		const double band_lo2 = sq(std::max(0.0, c.radius_m - 2 * tol)),
+		             band_hi2 = sq(c.radius_m + 2 * tol),
+		             on_lo2 = sq(std::max(0.0, c.radius_m - tol)),
+		             on_hi2 = sq(c.radius_m + tol);
+		for (long i = 0; i < n_pts; i++)
 		{
-			const double d = (q - c.centre).norm();
-			if (std::abs(d - c.radius_m) <= 2 * tol)
+			const double d2 = (p[size_t(i)] - c.centre).squaredNorm();
+			if (d2 >= band_lo2 && d2 <= band_hi2)
 			{
-				on += std::abs(d - c.radius_m) <= tol;
-				if (ring) ring->push_back(q);
+				on += d2 >= on_lo2 && d2 <= on_hi2;
+				if (ring) ring->push_back(p[size_t(i)]);
 			}
-			else if (d < inner)
+			else if (d2 < inner2)
 				inside++;
+			if (on - 2 * inside + (n_pts - 1 - i) <= beat)
+				return std::make_pair(beat, inside);
 		}
 		return std::make_pair(on - 2 * inside, inside);
 	};
@@ -153,7 +168,7 @@ CircleFitResult findRing(const Points2D& p, const TreeOptions& o, double rmin,
 		if (!circleThrough3(p[a], p[bc[0]], p[bc[1]], cand) ||
 		    cand.radius_m < rmin || cand.radius_m > rmax)
 			continue;
-		const auto [sc, inside] = score(cand, nullptr);
+		const auto [sc, inside] = score(cand, nullptr, best_score);
 		if (sc > best_score)
 		{
 			best_score = sc, best = cand;
