@@ -3,18 +3,22 @@
 // left them, stems on a column border are reported once, and a loop
 // correction moves a column's trees.
 #include <forest_slam/map/forest_map.h>
+#include <forest_slam/trees/column_input.h>
 #include <forest_slam/trees/tree_layer.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <functional>
 #include <limits>
 #include <random>
 #include <set>
 #include <tuple>
 #include <utility>
+
+#include <unistd.h>
 
 using namespace forest_slam;
 using namespace forest_slam::trees;
@@ -285,6 +289,124 @@ TEST(TreeLayer, DetectionOnceAtTheEndFindsTheSameTrees)
 		EXPECT_NEAR(b.dbh_m, 2 * t.r, 0.01) << t.x;
 		EXPECT_NEAR(a.dbh_m, b.dbh_m, 1e-5) << t.x;
 	}
+}
+
+TEST(TreeLayer, DumpedColumnInputsReplayToTheSameTrees)
+{
+	namespace fs = std::filesystem;
+	const fs::path dir = fs::temp_directory_path() /
+	                     ("fs_column_dump_" + std::to_string(::getpid()));
+	fs::remove_all(dir);
+	const std::vector<Stem> stems = {
+	    {4, 5, 0.15}, {19.98, -4, 0.18}, {27, 6, 0.25}, {45, -3, 0.2}};
+	TreeOptions o;
+	o.layer_dump_dir = (dir / "sub").string();  // created by the layer
+	TreeLayer layer(o, 20.0, false);
+	map::CForestMap m;
+	std::mt19937 rng(7);
+	for (double x = -5; x <= 55; x += 2.0)
+	{
+		const Eigen::Vector3d s(x, 0, ground(x, 0) + 1.5);
+		layer.addScan(scan(stems, s, rng), s);
+		layer.update(s, m);
+	}
+	const size_t columns = layer.finish(m);
+	ASSERT_EQ(m.trees().size(), stems.size());
+	std::vector<map::TreeRecord> replayed;
+	size_t files = 0;
+	for (const auto& e : fs::directory_iterator(dir / "sub"))
+	{
+		files++;
+		const ColumnInput in = readColumnInput(e.path().string());
+		EXPECT_DOUBLE_EQ(in.size_m, 20.0);
+		EXPECT_EQ(in.dirs.size(), in.pts.size());
+		if (in.ground.empty() || in.pts.empty()) continue;
+		for (const auto& t : detectColumnTrees(in, buildDtm(in.ground, o), o))
+			replayed.push_back(t);
+	}
+	EXPECT_EQ(files, columns);
+	ASSERT_EQ(replayed.size(), stems.size());
+	for (const auto& t : m.trees())
+	{
+		const auto same = std::find_if(
+		    replayed.begin(), replayed.end(),
+		    [&](const map::TreeRecord& r)
+		    { return r.x == t.x && r.y == t.y && r.dbh_m == t.dbh_m; });
+		EXPECT_NE(same, replayed.end()) << "tree at " << t.x << ", " << t.y;
+	}
+	fs::remove_all(dir);
+}
+
+TEST(ColumnInput, RoundTripAndDamagedFiles)
+{
+	namespace fs = std::filesystem;
+	const fs::path dir = fs::temp_directory_path() /
+	                     ("fs_column_io_" + std::to_string(::getpid()));
+	fs::create_directories(dir);
+	ColumnInput in;
+	in.x0 = -20, in.y0 = 40, in.size_m = 20;
+	in.ground = {{1, 2, 3}, {4, 5, 6}};
+	in.pts = {{0.5, 0.25, 1.5}, {7, 8, 9}, {-1, -2, -3}};
+	in.dirs = {{1, 0, 0}, {0, 1, 0}, {0, 0, 0}};
+	in.times = {0.5f, 1.5f, 0};
+	in.seg.pts = {{2, 2, 1.3}};
+	in.seg.dirs = {{0.6f, 0.8f, 0}};
+	in.seg.segment = {42};
+	in.seg.range_class = {3};
+	const std::string path = (dir / "column_-1_2.bin").string();
+	writeColumnInput(path, in);
+	const ColumnInput back = readColumnInput(path);
+	EXPECT_EQ(back.x0, -20);
+	EXPECT_EQ(back.y0, 40);
+	EXPECT_EQ(back.size_m, 20);
+	EXPECT_EQ(back.ground, in.ground);
+	EXPECT_EQ(back.pts, in.pts);
+	EXPECT_EQ(back.dirs, in.dirs);
+	EXPECT_EQ(back.times, in.times);
+	EXPECT_EQ(back.seg.pts, in.seg.pts);
+	EXPECT_EQ(back.seg.dirs, in.seg.dirs);
+	EXPECT_EQ(back.seg.segment, in.seg.segment);
+	EXPECT_EQ(back.seg.range_class, in.seg.range_class);
+
+	auto errorOf = [](const std::string& p)
+	{
+		try
+		{
+			readColumnInput(p);
+		}
+		catch (const std::runtime_error& e)
+		{
+			return std::string(e.what());
+		}
+		return std::string("no error");
+	};
+	// Truncated anywhere: an error naming the file, never a short read.
+	const auto size = fs::file_size(path);
+	for (const auto keep : {size_t(4), size_t(30), size_t(size - 1)})
+	{
+		const std::string cut = (dir / "cut.bin").string();
+		fs::copy_file(path, cut, fs::copy_options::overwrite_existing);
+		fs::resize_file(cut, keep);
+		const std::string e = errorOf(cut);
+		EXPECT_NE(e.find(cut), std::string::npos) << e;
+		EXPECT_NE(e.find("truncated"), std::string::npos) << e;
+	}
+	{
+		const std::string other = (dir / "other.bin").string();
+		std::FILE* f = std::fopen(other.c_str(), "wb");
+		std::fputs("id,x,y,dbh_m\n1,2,3,0.3\n", f);
+		std::fclose(f);
+		EXPECT_NE(errorOf(other).find("not a column input file"),
+		          std::string::npos);
+	}
+	EXPECT_NE(errorOf((dir / "missing.bin").string()).find("cannot open"),
+	          std::string::npos);
+	ColumnInput bad = in;
+	bad.times.pop_back();
+	EXPECT_THROW(writeColumnInput((dir / "bad.bin").string(), bad),
+	             std::invalid_argument);
+	EXPECT_FALSE(fs::exists(dir / "bad.bin"));
+	fs::remove_all(dir);
 }
 
 TEST(TreeOptions, DetectDuringRunResolvesAutoByInput)

@@ -1,4 +1,6 @@
+#include <forest_slam/core/atomic_file.h>
 #include <forest_slam/core/memory.h>
+#include <forest_slam/trees/column_input.h>
 #include <forest_slam/trees/stem_detector.h>
 #include <forest_slam/trees/terrain_model.h>
 #include <forest_slam/trees/tree_layer.h>
@@ -28,17 +30,9 @@ constexpr size_t kKeptScratchPoints = size_t(1) << 20;
 /** findTrees' per-thread buffers. */
 struct ColumnScratch
 {
-	std::vector<Eigen::Vector3d> pts, ground;
-	std::vector<Eigen::Vector3f> dirs, above;
-	std::vector<float> times;
-	SegmentedPoints seg;
-	void clear()
-	{
-		pts.clear(), ground.clear(), dirs.clear(), above.clear();
-		times.clear();
-		seg.pts.clear(), seg.dirs.clear(), seg.segment.clear();
-		seg.range_class.clear();
-	}
+	ColumnInput in;
+	std::vector<Eigen::Vector3f> above;
+	void clear() { in.clear(), above.clear(); }
 	/** Frees the buffers that grew past `points` (a big column's): kept,
 	 * each thread held the capacity of the biggest column it had seen, so
 	 * the two threads of the end-of-run detection held two big columns'
@@ -46,12 +40,9 @@ struct ColumnScratch
 	 * the 58-minute run peaked there, 330 MB above its correction. */
 	void trim(size_t points)
 	{
-		auto cut = [points](auto& v)
-		{
-			if (v.capacity() > points) std::decay_t<decltype(v)>().swap(v);
-		};
-		cut(pts), cut(ground), cut(dirs), cut(above), cut(times);
-		cut(seg.pts), cut(seg.dirs), cut(seg.segment), cut(seg.range_class);
+		in.trim(points);
+		if (above.capacity() > points)
+			std::vector<Eigen::Vector3f>().swap(above);
 	}
 };
 ColumnScratch& columnScratch()
@@ -596,6 +587,7 @@ TreeLayer::TreeLayer(const TreeOptions& o, double column_size_m,
     : o_(o), column_m_(column_size_m), detect_during_run_(detect_during_run)
 {
 	if (o.layer_spill_to_disk) spill_ = std::make_unique<core::SpillFile>();
+	if (!o.layer_dump_dir.empty()) core::ensureDirectory(o.layer_dump_dir);
 }
 
 TreeLayer::SortedVoxels& TreeLayer::resident(Column& c)
@@ -944,11 +936,13 @@ std::vector<map::TreeRecord> TreeLayer::findTrees(
 	// a fifth of the detection's CPU in the kernel.
 	ColumnScratch& s = columnScratch();
 	s.clear();
-	auto& pts = s.pts;
-	auto& ground = s.ground;
-	auto& dirs = s.dirs;    // per point of pts; 0: unknown
-	auto& times = s.times;  // per point of pts: mean time [s]
-	auto& seg = s.seg;      // breast-height voxels per time segment
+	ColumnInput& in = s.in;
+	in.x0 = x0, in.y0 = y0, in.size_m = column_m_;
+	auto& pts = in.pts;
+	auto& ground = in.ground;
+	auto& dirs = in.dirs;    // per point of pts; 0: unknown
+	auto& times = in.times;  // per point of pts: mean time [s]
+	auto& seg = in.seg;      // breast-height voxels per time segment
 	{
 		// The column and a margin (~1/4 more): grown by doubling, a big
 		// column held old and new arrays at once.
@@ -1021,12 +1015,12 @@ std::vector<map::TreeRecord> TreeLayer::findTrees(
 					pts.push_back(p), dirs.push_back(Eigen::Vector3f::Zero()),
 					    times.push_back(0.0f);
 			}
-		for (const auto& t :
-		     detectTrees(pts, dtm, o_, nullptr, &dirs,
-		                 seg.pts.empty() ? nullptr : &seg, &times))
-			if (t.record.x >= x0 && t.record.x < x0 + column_m_ &&
-			    t.record.y >= y0 && t.record.y < y0 + column_m_)
-				found.push_back(t.record);
+		if (!o_.layer_dump_dir.empty())
+			writeColumnInput(o_.layer_dump_dir + "/column_" +
+			                     std::to_string(k.x) + "_" +
+			                     std::to_string(k.y) + ".bin",
+			                 in);
+		found = detectColumnTrees(in, dtm, o_);
 	}
 	return found;
 }

@@ -128,6 +128,11 @@ struct TreeOptions : public mrpt::config::CLoadableOptions
 	 * of the tree layer's CPU). "auto": true for live input (`online`,
 	 * `map --follow`), false for a recorded rawlog. */
 	std::string layer_detect_during_run = "auto";
+	/** For benchmarks: every column detection also writes its input to
+	 * <dir>/column_<x>_<y>.bin (the directory is created), which
+	 * bench_tree_detection replays. Empty: off. Big: a 7-minute walk
+	 * writes about 2.4 GB. */
+	std::string layer_dump_dir;
 	/** layer_detect_during_run resolved for input that is (not) live. */
 	bool detectDuringRun(bool live_input) const
 	{
