@@ -10,8 +10,6 @@
 #include <forest_slam/pipeline/mapping_config.h>
 #include <forest_slam/pipeline/mapping_job.h>
 
-#include <malloc.h>
-
 #include <cstdio>
 #include <cstdlib>
 #include <iostream>
@@ -197,12 +195,8 @@ int main(int argc, char** argv)
 	// where page faults are dear (core/memory.h).
 	forest_slam::core::useHugePages(argv);
 	// Blocks of 4 MB and more (dense-map tile tables, tree-layer columns,
-	// detection buffers, the CForestMap's merge) get their own mapping and
-	// go back to the system when freed. By default glibc raises this
-	// threshold each time such a block is freed, after which they come
-	// from the heap and stay in the process once freed (handheld run: RSS
-	// peak 1897 MB, 1627 MB with this).
-	mallopt(M_MMAP_THRESHOLD, 4 << 20);
+	// the CForestMap's merge) go back to the system when freed.
+	forest_slam::core::returnBigBlocksToTheSystem();
 	std::vector<std::string> args(argv + 1, argv + argc);
 	try
 	{
