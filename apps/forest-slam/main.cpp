@@ -10,6 +10,8 @@
 #include <forest_slam/pipeline/mapping_config.h>
 #include <forest_slam/pipeline/mapping_job.h>
 
+#include <malloc.h>
+
 #include <cstdio>
 #include <cstdlib>
 #include <iostream>
@@ -195,8 +197,12 @@ int main(int argc, char** argv)
 	// where page faults are dear (core/memory.h).
 	forest_slam::core::useHugePages(argv);
 	// Blocks of 4 MB and more (dense-map tile tables, tree-layer columns,
-	// the CForestMap's merge) go back to the system when freed.
-	forest_slam::core::returnBigBlocksToTheSystem();
+	// detection buffers, the CForestMap's merge) get their own mapping and
+	// go back to the system when freed. By default glibc raises this
+	// threshold each time such a block is freed, after which they come
+	// from the heap and stay in the process once freed (handheld run: RSS
+	// peak 1897 MB, 1627 MB with this).
+	mallopt(M_MMAP_THRESHOLD, 4 << 20);
 	std::vector<std::string> args(argv + 1, argv + argc);
 	try
 	{

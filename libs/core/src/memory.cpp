@@ -1,6 +1,5 @@
 #include <forest_slam/core/memory.h>
 
-#include <malloc.h>
 #include <sys/resource.h>
 #include <time.h>
 #include <unistd.h>
@@ -67,24 +66,6 @@ bool heapOnHugePages()
 {
 	const std::string v = hugetlbTunable();
 	return !v.empty() && v != "0";
-}
-
-void returnBigBlocksToTheSystem()
-{
-	mallopt(M_MMAP_THRESHOLD, kMmapThresholdBytes);
-}
-
-HeapKeptForReuse::HeapKeptForReuse()
-{
-	mallopt(M_MMAP_THRESHOLD, 32 << 20);
-	mallopt(M_TRIM_THRESHOLD, 1 << 30);
-}
-
-HeapKeptForReuse::~HeapKeptForReuse()
-{
-	mallopt(M_MMAP_THRESHOLD, kMmapThresholdBytes);
-	mallopt(M_TRIM_THRESHOLD, kTrimThresholdBytes);
-	malloc_trim(0);
 }
 
 void useHugePages(char** argv)

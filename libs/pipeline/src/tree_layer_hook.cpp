@@ -66,14 +66,7 @@ void MappingPipeline::finishTreeLayer()
 {
 	if (!tree_layer_) return;
 	const auto t0 = std::chrono::steady_clock::now();
-	{
-		// Every detection allocates and frees tens of MB of buffers: kept
-		// in the heap between columns, not mapped and zeroed afresh (a
-		// quarter of the detection's time was page faults). The work is
-		// bounded (kTwoAtOnceVoxels), so is the heap; given back after.
-		const core::HeapKeptForReuse keep;
-		tree_layer_->finish(map_);
-	}
+	tree_layer_->finish(map_);
 	// Every column is detected and the back-end's final correction is done
 	// (finishBackEnd runs first): the stem-band voxels are not read again.
 	tree_layer_->releaseStemVoxels();

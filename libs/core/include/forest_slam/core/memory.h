@@ -37,34 +37,6 @@ inline constexpr const char* kHugePagesEnv = "FOREST_SLAM_HUGE_PAGES";
  * THP mode is "never", or when exec fails. Call first thing in main(). */
 void useHugePages(char** argv);
 
-/** Blocks of this size and more get their own mapping and go back to the
- * system when freed (mallopt M_MMAP_THRESHOLD, set first thing in `main`):
- * glibc's default raises the threshold each time such a block is freed,
- * after which they stay in the process (handheld run: peak RSS 1897 MB,
- * 1627 MB with it). */
-inline constexpr int kMmapThresholdBytes = 4 << 20;
-/** glibc's default M_TRIM_THRESHOLD (fixed once M_MMAP_THRESHOLD is set). */
-inline constexpr int kTrimThresholdBytes = 128 << 10;
-/** Sets M_MMAP_THRESHOLD to kMmapThresholdBytes. */
-void returnBigBlocksToTheSystem();
-
-/** While it lives, malloc keeps blocks up to 32 MB (glibc's largest
- * mmap threshold) in its heap and does not trim the heap's top: a phase that
- * allocates and frees the same big buffers over and over reuses them
- * instead of mapping and zeroing them afresh each time. Its destructor
- * restores kMmapThresholdBytes and kTrimThresholdBytes and gives the free
- * heap back (malloc_trim). For phases whose peak is bounded by their work
- * (the end-of-run tree detection: handheld run 12.3 / 13.9 -> 9.9 / 9.0 s,
- * peak RSS +3 / +9 MB). */
-class HeapKeptForReuse
-{
-   public:
-	HeapKeptForReuse();
-	~HeapKeptForReuse();
-	HeapKeptForReuse(const HeapKeptForReuse&) = delete;
-	HeapKeptForReuse& operator=(const HeapKeptForReuse&) = delete;
-};
-
 template <class T, class A>
 size_t vectorBytes(const std::vector<T, A>& v)
 {
