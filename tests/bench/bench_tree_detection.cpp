@@ -65,7 +65,20 @@ int main(int argc, char** argv)
 			if (a == "--config")
 				config = value();
 			else if (a == "--repeat")
-				repeat = std::stoi(value());
+			{
+				const std::string v = value();
+				size_t used = 0;
+				try
+				{
+					repeat = std::stoi(v, &used);
+				}
+				catch (const std::exception&)
+				{
+				}
+				if (used == 0 || used != v.size())
+					return usage("--repeat needs a whole number, got '" + v +
+					             "'");
+			}
 			else if (a == "--trees-csv")
 				trees_csv = value();
 			else if (!a.empty() && a[0] == '-')
