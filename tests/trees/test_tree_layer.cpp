@@ -81,6 +81,18 @@ const map::TreeRecord& nearestTree(const map::CForestMap& m, const Stem& t)
 			best = &r;
 	return *best;
 }
+/** The sensor along y = 0 from x0 to x1 (1.5 m above ground), a scan
+ * stored and the layer updated at every step. */
+void walk(TreeLayer& layer, map::CForestMap& m, const std::vector<Stem>& stems,
+          double x0, double x1, double step, std::mt19937& rng)
+{
+	for (double x = x0; x <= x1; x += step)
+	{
+		const Eigen::Vector3d s(x, 0, ground(x, 0) + 1.5);
+		layer.addScan(scan(stems, s, rng), s);
+		layer.update(s, m);
+	}
+}
 }  // namespace
 
 TEST(TreeLayer, ColumnsDetectedAsTheSensorLeavesThem)
@@ -304,12 +316,7 @@ TEST(TreeLayer, DumpedColumnInputsReplayToTheSameTrees)
 	TreeLayer layer(o, 20.0, false);
 	map::CForestMap m;
 	std::mt19937 rng(7);
-	for (double x = -5; x <= 55; x += 2.0)
-	{
-		const Eigen::Vector3d s(x, 0, ground(x, 0) + 1.5);
-		layer.addScan(scan(stems, s, rng), s);
-		layer.update(s, m);
-	}
+	walk(layer, m, stems, -5, 55, 2.0, rng);
 	const size_t columns = layer.finish(m);
 	ASSERT_EQ(m.trees().size(), stems.size());
 	std::vector<map::TreeRecord> replayed;
@@ -592,12 +599,7 @@ TEST(TreeLayer, ReleasedStemVoxelsKeepTheTreesAndTheirCorrection)
 	TreeLayer layer(o, 20.0);
 	map::CForestMap m;
 	std::mt19937 rng(3);
-	for (double x = -5; x <= 20; x += 1.0)
-	{
-		const Eigen::Vector3d s(x, 0, ground(x, 0) + 1.5);
-		layer.addScan(scan(stems, s, rng), s);
-		layer.update(s, m);
-	}
+	walk(layer, m, stems, -5, 20, 1.0, rng);
 	layer.finish(m);
 	const auto trees = m.trees();
 	ASSERT_EQ(trees.size(), stems.size());
