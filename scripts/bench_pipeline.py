@@ -176,6 +176,10 @@ def bench(build, name, seed, out_root, max_scans, long_loops, mem_period):
         "real_time_factor": summ["real_time_factor"],
         "real_time_factor_cpu": data_s / tv["cpu_s"] if tv["cpu_s"] else 0,
         "stage_ms": summ["stage_ms"],
+        # Each thread's CPU per scan while the scans were processed.
+        "scan_thread_cpu_ms_per_scan": {
+            k: 1e3 * v / scans if scans else 0 for k, v in
+            summ.get("scan_thread_cpu_seconds", {}).items()},
         "peak_rss_mb": tv["peak_rss_mb"],
         "peak_rss_mapping_mb": max([c["rss_mb"] for c in mem.get("curve", [])]
                                    + [mem.get("end_of_mapping", {}).get("rss_mb", 0)]),
@@ -211,6 +215,11 @@ def show(r):
     print("  stage ms    " + ", ".join(
         f"{k} {v['median']:.1f}/{v['p95']:.1f}/{v['max']:.0f}"
         for k, v in r["stage_ms"].items()) + "  (median/p95/max)")
+    th = r["scan_thread_cpu_ms_per_scan"]
+    if th:
+        print(f"  CPU/scan    {sum(th.values()):.1f} ms during the scans: " +
+              ", ".join(f"{k} {v:.1f}" for k, v in
+                        sorted(th.items(), key=lambda kv: -kv[1])))
     m = r["memory_end_of_mapping"] or {}
     print(f"  memory      peak RSS {r['peak_rss_mb']:.0f} MB (mapping "
           f"{r['peak_rss_mapping_mb']:.0f} MB; target <= 2048); at the end "

@@ -1,3 +1,4 @@
+#include <forest_slam/core/memory.h>
 #include <forest_slam/core/serial_worker.h>
 #include <gtest/gtest.h>
 
@@ -119,4 +120,29 @@ TEST(SerialWorker, DestructorRunsTheQueuedJobs)
 			    });
 	}
 	EXPECT_EQ(done.load(), 8);
+}
+
+TEST(SerialWorker, NamedThreadReportsItsCpu)
+{
+	using forest_slam::core::threadCpuByName;
+	using forest_slam::core::threadCpuSeconds;
+	SerialWorker w(2, "fs-test-spin");
+	// Spins until this worker thread itself has used 0.15 s of CPU, however
+	// loaded the machine is.
+	w.push(
+	    []
+	    {
+		    const double c0 = threadCpuSeconds();
+		    volatile double x = 0;
+		    while (threadCpuSeconds() - c0 < 0.15) x = x + 1;
+	    });
+	w.flush();
+	const auto threads = threadCpuByName();
+	ASSERT_FALSE(threads.empty());
+	double spin_s = -1;
+	for (const auto& [name, s] : threads)
+		if (name == "fs-test-spin") spin_s = s;
+	// /proc counts in clock ticks (10 ms): 0.15 s shows as 0.14-0.17 s.
+	EXPECT_GE(spin_s, 0.12);
+	EXPECT_LT(spin_s, 1.0);
 }

@@ -1,5 +1,6 @@
 #include <forest_slam/core/memory.h>
 
+#include <dirent.h>
 #include <sys/resource.h>
 #include <time.h>
 #include <unistd.h>
@@ -38,6 +39,41 @@ double processCpuSeconds()
 	getrusage(RUSAGE_SELF, &u);
 	return u.ru_utime.tv_sec + u.ru_stime.tv_sec +
 	       1e-6 * (u.ru_utime.tv_usec + u.ru_stime.tv_usec);
+}
+
+std::vector<std::pair<std::string, double>> threadCpuByName()
+{
+	std::vector<std::pair<std::string, double>> out;
+	DIR* d = opendir("/proc/self/task");
+	if (!d) return out;
+	const double tick = 1.0 / double(sysconf(_SC_CLK_TCK));
+	while (const dirent* e = readdir(d))
+	{
+		if (e->d_name[0] == '.') continue;
+		const std::string task = std::string("/proc/self/task/") + e->d_name;
+		std::ifstream comm(task + "/comm"), stat(task + "/stat");
+		std::string name, line;
+		if (!std::getline(comm, name) || !std::getline(stat, line))
+			continue;  // the thread ended meanwhile
+		// Fields after the ")" closing the name: state is field 3, utime
+		// and stime are fields 14 and 15.
+		const size_t close = line.rfind(')');
+		if (close == std::string::npos) continue;
+		unsigned long utime = 0, stime = 0;
+		if (std::sscanf(line.c_str() + close + 1,
+		                " %*c %*d %*d %*d %*d %*d %*u %*u %*u %*u %*u %lu %lu",
+		                &utime, &stime) != 2)
+			continue;
+		const double s = double(utime + stime) * tick;
+		auto it = out.begin();
+		while (it != out.end() && it->first != name) ++it;
+		if (it == out.end())
+			out.emplace_back(name, s);
+		else
+			it->second += s;
+	}
+	closedir(d);
+	return out;
 }
 
 double threadCpuSeconds()

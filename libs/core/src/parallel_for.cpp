@@ -1,5 +1,7 @@
 #include <forest_slam/core/parallel_for.h>
 
+#include <pthread.h>
+
 #include <algorithm>
 #include <atomic>
 #include <condition_variable>
@@ -24,7 +26,12 @@ class HelperPool
 	explicit HelperPool(int helpers)
 	{
 		for (int i = 0; i < helpers; i++)
-			threads_.emplace_back([this, i] { loop(i + 1); });
+			threads_.emplace_back(
+			    [this, i]
+			    {
+				    pthread_setname_np(pthread_self(), "fs-helper");
+				    loop(i + 1);
+			    });
 	}
 	~HelperPool()
 	{

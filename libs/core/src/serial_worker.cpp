@@ -1,10 +1,13 @@
 #include <forest_slam/core/serial_worker.h>
 
+#include <pthread.h>
+
 namespace forest_slam::core
 {
-SerialWorker::SerialWorker(size_t max_pending) : max_pending_(max_pending)
+SerialWorker::SerialWorker(size_t max_pending, const char* name)
+    : max_pending_(max_pending)
 {
-	if (max_pending_ > 0) worker_ = std::thread([this] { run(); });
+	if (max_pending_ > 0) worker_ = std::thread([this, name] { run(name); });
 }
 
 SerialWorker::~SerialWorker()
@@ -49,8 +52,9 @@ void SerialWorker::flush()
 	rethrow();
 }
 
-void SerialWorker::run()
+void SerialWorker::run(const char* name)
 {
+	pthread_setname_np(pthread_self(), name);  // a longer name is refused
 	std::unique_lock<std::mutex> lk(m_);
 	for (;;)
 	{

@@ -1,6 +1,7 @@
 #include <forest_slam/core/log.h>
 #include <forest_slam/loop/back_end.h>
 #include <forest_slam/loop/levelling.h>
+#include <pthread.h>
 
 #include <algorithm>
 #include <chrono>
@@ -32,7 +33,13 @@ BackEnd::BackEnd(const LoopOptions& o, bool threaded,
                  std::shared_ptr<core::SpillFile> spill)
     : o_(o), threaded_(threaded), spill_(std::move(spill))
 {
-	if (threaded_) worker_ = std::thread([this] { run(); });
+	if (threaded_)
+		worker_ = std::thread(
+		    [this]
+		    {
+			    pthread_setname_np(pthread_self(), "fs-backend");
+			    run();
+		    });
 }
 
 BackEnd::~BackEnd()

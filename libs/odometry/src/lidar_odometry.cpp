@@ -77,7 +77,7 @@ LidarOdometry::LidarOdometry(const OdometryConfig& cfg, map::CForestMap& map)
       local_map_(cfg.local_map, cfg.registration.plane_flatness),
       map_(map),
       inserter_(map, cfg.odometry.async_map_insert ? kMapQueue : 0),
-      local_worker_(cfg.odometry.async_map_insert ? 2 : 0),
+      local_worker_(cfg.odometry.async_map_insert ? 2 : 0, "fs-localmap"),
       lattice_(cfg.ground)
 {
 }

@@ -4,6 +4,7 @@
 #include <forest_slam/trees/stem_detector.h>
 #include <forest_slam/trees/terrain_model.h>
 #include <forest_slam/trees/tree_layer.h>
+#include <pthread.h>
 
 #include <algorithm>
 #include <chrono>
@@ -87,6 +88,7 @@ class SecondThread
 	      t_(
 	          [this, &work]
 	          {
+		          pthread_setname_np(pthread_self(), "fs-trees2");
 		          const double c0 = core::threadCpuSeconds();
 		          work();
 		          thread_ms_ = 1000 * (core::threadCpuSeconds() - c0);

@@ -6,7 +6,9 @@
 // bucket pointer per element; allocator overhead is not counted, so the sum
 // of the parts stays below the RSS.
 #include <cstddef>
+#include <string>
 #include <unordered_map>
+#include <utility>
 #include <vector>
 
 namespace forest_slam::core
@@ -19,6 +21,10 @@ double peakRssMb();
 double processCpuSeconds();
 /** CPU time of the calling thread so far, user + system [s]. */
 double threadCpuSeconds();
+/** CPU time so far of this process's live threads, summed by thread name
+ * (/proc/self/task/<tid>/comm and stat; the workers are named fs-...),
+ * in order of first appearance [s]. Empty if /proc is unreadable. */
+std::vector<std::pair<std::string, double>> threadCpuByName();
 
 /** Whether glibc's malloc of this process advises transparent huge pages
  * (the tunable glibc.malloc.hugetlb, read at process start). */

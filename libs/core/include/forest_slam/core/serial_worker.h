@@ -19,8 +19,9 @@ class SerialWorker
    public:
 	/** max_pending: jobs waiting at most (push() blocks beyond it, so the
 	 * memory they hold stays bounded when the worker falls behind). 0 runs
-	 * every job inline in push() (no thread). */
-	explicit SerialWorker(size_t max_pending);
+	 * every job inline in push() (no thread). name: the thread's name (at
+	 * most 15 characters), so that top -H and perf tell the workers apart. */
+	explicit SerialWorker(size_t max_pending, const char* name = "fs-worker");
 	/** Runs the jobs still queued, then joins. */
 	~SerialWorker();
 	SerialWorker(const SerialWorker&) = delete;
@@ -34,7 +35,7 @@ class SerialWorker
 	bool threaded() const { return max_pending_ > 0; }
 
    private:
-	void run();
+	void run(const char* name);
 	void rethrow();
 
 	const size_t max_pending_;

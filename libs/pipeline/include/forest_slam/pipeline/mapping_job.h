@@ -36,6 +36,10 @@ struct MappingResult
 	 * end of mapping (before the outputs are written). */
 	std::vector<MemorySample> memory_curve;
 	MemorySample memory_end;
+	/** CPU time of each thread (summed by name) when the last scan was
+	 * processed, before the final corrections and the end-of-run
+	 * detection: where the scans' CPU goes [s]. */
+	std::vector<std::pair<std::string, double>> scan_thread_cpu_s;
 };
 
 /** Runs the job. Throws core::ConfigError / std::runtime_error for problems
