@@ -11,6 +11,7 @@
 #include <forest_slam/pipeline/mapping_job.h>
 
 #include <malloc.h>
+#include <pthread.h>
 
 #include <cstdio>
 #include <cstdlib>
@@ -196,6 +197,10 @@ int main(int argc, char** argv)
 	// valgrind, which does not follow the exec): a fifth less CPU on a VM
 	// where page faults are dear (core/memory.h).
 	forest_slam::core::useHugePages(argv);
+	// The re-execution through /proc/self/exe names the process "exe" in
+	// ps, top and perf; its workers are fs-... (run_summary.json
+	// scan_thread_cpu_seconds).
+	pthread_setname_np(pthread_self(), "forest-slam");
 	// Blocks of 4 MB and more (dense-map tile tables, tree-layer columns,
 	// detection buffers, the CForestMap's merge) get their own mapping and
 	// go back to the system when freed. By default glibc raises this

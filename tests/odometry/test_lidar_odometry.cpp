@@ -59,6 +59,67 @@ TEST(LidarOdometry, FollowsConstantVelocityMotion)
 
 namespace
 {
+/** The CForestMap's voxels after each of 20 scans of the poles world, and
+ * the worst position error, with every other scan inserted whole and the
+ * others from far_m on. */
+std::vector<size_t> voxelsAlongTheDrive(double far_m, double& worst)
+{
+	test_support::MovingSensorWorld w;  // 2 m/s: 0.2 m from scan to scan
+	w.poles = standOfPoles();
+	map::CForestMap m;
+	odometry::OdometryConfig cfg;
+	cfg.odometry.map_insert_every_scans = 2;
+	cfg.odometry.map_insert_far_m = far_m;
+	cfg.odometry.start_radius_m = 1.0;  // left at scan 5
+	odometry::LidarOdometry od(cfg, m);
+	std::vector<size_t> voxels;
+	worst = 0;
+	for (int k = 0; k < 20; k++)
+	{
+		const auto st = od.processScan(core::unpackRotatingScan(w.scan(k)));
+		od.flushMap();
+		voxels.push_back(m.edgePointCount() + m.planarPointCount());
+		if (k > 0)
+		{
+			EXPECT_TRUE(st.registered) << "scan " << k;
+		}
+		worst = std::max(worst, (st.pose.pose.translation() -
+		                         w.positionAt(w.t0_s + k * w.period_s))
+		                            .norm());
+	}
+	return voxels;
+}
+}  // namespace
+
+TEST(LidarOdometry, MapInsertEveryOtherScanAfterTheStart)
+{
+	double worst = 0;
+	const auto voxels = voxelsAlongTheDrive(0, worst);
+	for (int k = 2; k < 20; k++)
+	{
+		// Within the start every scan adds voxels (scan 1 rebuilds the map
+		// from scan 0 deskewed with the motion now known); after it, odd
+		// scans are registered but leave the map as it was.
+		if (k < 5 || k % 2 == 0)
+		{
+			EXPECT_GT(voxels[k], voxels[k - 1]) << "scan " << k;
+		}
+		else if (k > 5)
+		{
+			EXPECT_EQ(voxels[k], voxels[k - 1]) << "scan " << k;
+		}
+	}
+	EXPECT_LT(worst, 0.08);  // as with every scan inserted
+	// With the odd scans' points from 1 m on (nearly all), they add voxels
+	// too.
+	const auto far = voxelsAlongTheDrive(1.0, worst);
+	for (int k = 7; k < 20; k += 2)
+		EXPECT_GT(far[k], far[k - 1]) << "scan " << k;
+	EXPECT_LT(worst, 0.08);
+}
+
+namespace
+{
 double yawDeg(const Eigen::Isometry3d& T)
 {
 	return std::atan2(T.linear()(1, 0), T.linear()(0, 0)) * 180 / M_PI;
@@ -126,6 +187,7 @@ TEST(LidarOdometry, StartPriorKeysAreChecked)
 {
 	for (const char* bad :
 	     {"start_rotation_sigma_deg = -0.1", "start_radius_m = -5",
+	      "map_insert_every_scans = 0", "map_insert_far_m = -1",
 	      "start_plane_spread_ratio = 1.5", "start_plane_spread_ratio = -1"})
 	{
 		auto cfg = core::TrackedConfig::fromText(

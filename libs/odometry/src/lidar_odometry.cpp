@@ -14,6 +14,8 @@ void OdometryOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
                                          const std::string& s)
 {
 	FS_LOAD(c, s, prune_every_scans);
+	FS_LOAD(c, s, map_insert_every_scans);
+	FS_LOAD(c, s, map_insert_far_m);
 	FS_LOAD(c, s, use_imu);
 	FS_LOAD(c, s, min_matches);
 	FS_LOAD(c, s, degeneracy_ratio);
@@ -28,6 +30,12 @@ void OdometryOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 	const std::string where = core::configOrigin(c) + ": [" + s + "] ";
 	if (prune_every_scans < 1)
 		throw core::ConfigError(where + "prune_every_scans must be >= 1");
+	if (map_insert_every_scans < 1)
+		throw core::ConfigError(where +
+		                        "map_insert_every_scans: expected a whole "
+		                        "number >= 1");
+	if (!(map_insert_far_m >= 0))
+		throw core::ConfigError(where + "map_insert_far_m: expected >= 0");
 	if (min_matches < 6)
 		throw core::ConfigError(where + "min_matches must be >= 6");
 	if (!(degenerate_hold_ratio >= 0 && degenerate_hold_ratio < 1))
@@ -50,6 +58,8 @@ void OdometryOptions::saveToConfigFile(mrpt::config::CConfigFileBase& c,
                                        const std::string& s) const
 {
 	c.write(s, "prune_every_scans", prune_every_scans);
+	c.write(s, "map_insert_every_scans", map_insert_every_scans);
+	c.write(s, "map_insert_far_m", map_insert_far_m);
 	c.write(s, "use_imu", use_imu);
 	c.write(s, "min_matches", min_matches);
 	c.write(s, "degeneracy_ratio", degeneracy_ratio);
@@ -271,8 +281,10 @@ LidarOdometry::Prepared LidarOdometry::prepare(
 	return out;
 }
 
-void LidarOdometry::insert(const Prepared& s, const Eigen::Isometry3d& pose)
+void LidarOdometry::insert(const Prepared& s, const Eigen::Isometry3d& pose,
+                           float min_range_m)
 {
+	const float min_r2 = min_range_m * min_range_m;
 	// The whole deskewed scan, not only the selected features, split by its
 	// decision factor into the edge and planar clouds (§4.5); the voxel
 	// filters keep the map small.
@@ -280,6 +292,7 @@ void LidarOdometry::insert(const Prepared& s, const Eigen::Isometry3d& pose)
 	    local_planar;
 	for (size_t i = 0; i < s.points.size(); i++)
 	{
+		if (min_r2 > 0 && s.points[i].xyz.squaredNorm() < min_r2) continue;
 		const bool edge = s.feats.smoothness[i] > cfg_.features.edge_threshold;
 		(edge ? map_edges : map_planar).push_back(s.points[i].xyz);
 		(edge ? local_edges : local_planar).push_back(s.matched[i]);
@@ -542,7 +555,17 @@ OdometryStep LidarOdometry::processScan(const core::ScanPoints& scan)
 	for (const auto& p : cur.points) last_deskewed_.push_back(p.xyz);
 
 	// 7. Map update and motion model.
-	insert(cur, pose);
+	// Every scan is registered; the whole of every map_insert_every_scans-th
+	// goes into the maps, of the others only the points beyond
+	// map_insert_far_m. Near the sensor consecutive scans overlap almost
+	// wholly (12 cm apart on a walk) and the maps are full at their spacing;
+	// far away each scan adds points, and they hold the yaw. At the start
+	// every scan goes in whole: the young map, seen from one viewpoint, sets
+	// the yaw the whole map keeps.
+	if (!left_start_ || scans_ % cfg_.odometry.map_insert_every_scans == 0)
+		insert(cur, pose);
+	else if (cfg_.odometry.map_insert_far_m > 0)
+		insert(cur, pose, static_cast<float>(cfg_.odometry.map_insert_far_m));
 	if (scans_ % cfg_.odometry.prune_every_scans == 0)
 		local_worker_.push([this, c = Eigen::Vector3d(pose.translation())]
 		                   { local_map_.prune(c); });

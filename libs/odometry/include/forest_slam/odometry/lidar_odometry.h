@@ -29,6 +29,16 @@ struct OdometryOptions : public mrpt::config::CLoadableOptions
 	/** The local map drops voxels beyond local_map.radius_m every this many
 	 * scans. */
 	int prune_every_scans = 20;
+	/** Every scan is registered; every this many-th goes whole into the
+	 * local map and the CForestMap, the others only with their points at
+	 * least map_insert_far_m from the sensor (0: none). Every scan goes in
+	 * whole until the lidar is start_radius_m from the first scan. Near
+	 * the sensor consecutive scans of a 10 Hz lidar overlap almost wholly
+	 * and the maps are full at their spacing; far points are new in every
+	 * scan and hold the yaw. The tree layer and the dense map (map.las)
+	 * take every scan. */
+	int map_insert_every_scans = 1;
+	double map_insert_far_m = 15.0;
 	/** Use the IMU (when the rawlog has one) for the rotation prediction,
 	 * the deskew and the gravity prior. */
 	bool use_imu = true;
@@ -227,7 +237,10 @@ class LidarOdometry
 	};
 	Prepared prepare(const core::ScanPoints& scan, const SweepMotion& motion,
 	                 const Eigen::Isometry3d& predicted, ScanTiming& timing);
-	void insert(const Prepared& s, const Eigen::Isometry3d& pose);
+	/** Into both maps: the points of `s` at least min_range_m from the
+	 * sensor. */
+	void insert(const Prepared& s, const Eigen::Isometry3d& pose,
+	            float min_range_m = 0);
 	/** Lidar rotation from t0 to t1 from the IMU (lidar frame). */
 	Eigen::Matrix3d imuRotation(double t0_s, double t1_s) const;
 	/** Gravity vector of the map frame (z up) [m/s^2]. */
