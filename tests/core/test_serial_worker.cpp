@@ -2,7 +2,13 @@
 #include <forest_slam/core/serial_worker.h>
 #include <gtest/gtest.h>
 
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+
+#include <algorithm>
 #include <atomic>
+#include <cerrno>
 #include <chrono>
 #include <future>
 #include <stdexcept>
@@ -145,4 +151,34 @@ TEST(SerialWorker, NamedThreadReportsItsCpu)
 	// /proc counts in clock ticks (10 ms): 0.15 s shows as 0.14-0.17 s.
 	EXPECT_GE(spin_s, 0.12);
 	EXPECT_LT(spin_s, 1.0);
+}
+
+TEST(SerialWorker, BackgroundWorkerRunsAtALowerPriority)
+{
+	// The nice value of the worker's own thread, read on that thread: +5
+	// over its creator's for a background worker, unchanged otherwise.
+	auto niceOfWorker = [](bool background)
+	{
+		SerialWorker w(2, "fs-test-nice", background);
+		int nice = 0;
+		w.push(
+		    [&]
+		    {
+			    errno = 0;
+			    nice = getpriority(PRIO_PROCESS,
+			                       static_cast<id_t>(syscall(SYS_gettid)));
+			    ASSERT_EQ(errno, 0);
+		    });
+		w.flush();
+		return nice;
+	};
+	errno = 0;
+	const int mine =
+	    getpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)));
+	ASSERT_EQ(errno, 0);
+	EXPECT_EQ(niceOfWorker(false), mine);
+	EXPECT_EQ(niceOfWorker(true), std::min(19, mine + 5));
+	// The caller's own priority is left alone.
+	EXPECT_EQ(getpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid))),
+	          mine);
 }

@@ -1,10 +1,13 @@
 #include <forest_slam/core/memory.h>
 
 #include <dirent.h>
+#include <sys/syscall.h>
 #include <sys/resource.h>
 #include <time.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <cerrno>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -39,6 +42,17 @@ double processCpuSeconds()
 	getrusage(RUSAGE_SELF, &u);
 	return u.ru_utime.tv_sec + u.ru_stime.tv_sec +
 	       1e-6 * (u.ru_utime.tv_usec + u.ru_stime.tv_usec);
+}
+
+bool runInBackground()
+{
+	// Linux gives each thread its own nice value (PRIO_PROCESS with a
+	// thread id); raising it needs no privilege.
+	const auto tid = static_cast<id_t>(syscall(SYS_gettid));
+	errno = 0;
+	const int now = getpriority(PRIO_PROCESS, tid);
+	if (errno != 0) return false;
+	return setpriority(PRIO_PROCESS, tid, std::min(19, now + 5)) == 0;
 }
 
 std::vector<std::pair<std::string, double>> threadCpuByName()

@@ -1,13 +1,17 @@
+#include <forest_slam/core/memory.h>
 #include <forest_slam/core/serial_worker.h>
 
 #include <pthread.h>
 
 namespace forest_slam::core
 {
-SerialWorker::SerialWorker(size_t max_pending, const char* name)
+SerialWorker::SerialWorker(size_t max_pending, const char* name,
+                           bool background)
     : max_pending_(max_pending)
 {
-	if (max_pending_ > 0) worker_ = std::thread([this, name] { run(name); });
+	if (max_pending_ > 0)
+		worker_ =
+		    std::thread([this, name, background] { run(name, background); });
 }
 
 SerialWorker::~SerialWorker()
@@ -52,9 +56,10 @@ void SerialWorker::flush()
 	rethrow();
 }
 
-void SerialWorker::run(const char* name)
+void SerialWorker::run(const char* name, bool background)
 {
 	pthread_setname_np(pthread_self(), name);  // a longer name is refused
+	if (background) runInBackground();
 	std::unique_lock<std::mutex> lk(m_);
 	for (;;)
 	{

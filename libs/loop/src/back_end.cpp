@@ -1,4 +1,5 @@
 #include <forest_slam/core/log.h>
+#include <forest_slam/core/memory.h>
 #include <forest_slam/loop/back_end.h>
 #include <forest_slam/loop/levelling.h>
 #include <pthread.h>
@@ -38,6 +39,7 @@ BackEnd::BackEnd(const LoopOptions& o, bool threaded,
 		    [this]
 		    {
 			    pthread_setname_np(pthread_self(), "fs-backend");
+			    core::runInBackground();
 			    run();
 		    });
 }

@@ -3,7 +3,7 @@
 namespace forest_slam::odometry
 {
 MapInserter::MapInserter(map::CForestMap& map, size_t max_pending)
-    : map_(map), worker_(max_pending, "fs-mapinsert")
+    : map_(map), worker_(max_pending, "fs-mapinsert", true)
 {
 }
 

@@ -33,7 +33,7 @@ RunCollector::RunCollector(const OutputOptions& o, double min_range_m,
       dense_(o.dense_voxel_m, o.spill_to_disk ? o.dense_tile_m : 0),
       collect_dense_(o.needsDenseMap()),
       collect_keyframes_(o.needsKeyframeClouds()),
-      worker_(2, "fs-collector")
+      worker_(2, "fs-collector", true)
 {
 	// At once, so a bad spill_dir stops the run before it starts.
 	if (o.spill_to_disk) spill();

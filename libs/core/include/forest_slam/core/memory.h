@@ -25,6 +25,12 @@ double threadCpuSeconds();
  * (/proc/self/task/<tid>/comm and stat; the workers are named fs-...),
  * in order of first appearance [s]. Empty if /proc is unreadable. */
 std::vector<std::pair<std::string, double>> threadCpuByName();
+/** Lowers the calling thread's priority (nice +5): for the workers whose
+ * results nobody waits for while their queues have room (the CForestMap's
+ * insertion, the output collector, the back-end), so that when both cores
+ * are wanted the odometry's threads, on which every scan waits, get them
+ * first. Returns false if the system refused (then nothing changed). */
+bool runInBackground();
 
 /** Whether glibc's malloc of this process advises transparent huge pages
  * (the tunable glibc.malloc.hugetlb, read at process start). */

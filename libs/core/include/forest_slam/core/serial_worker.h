@@ -20,8 +20,12 @@ class SerialWorker
 	/** max_pending: jobs waiting at most (push() blocks beyond it, so the
 	 * memory they hold stays bounded when the worker falls behind). 0 runs
 	 * every job inline in push() (no thread). name: the thread's name (at
-	 * most 15 characters), so that top -H and perf tell the workers apart. */
-	explicit SerialWorker(size_t max_pending, const char* name = "fs-worker");
+	 * most 15 characters), so that top -H and perf tell the workers apart.
+	 * background: the thread runs at a lower priority (nice +5), for work
+	 * nobody waits for while the queue has room (see
+	 * core::runInBackground). */
+	explicit SerialWorker(size_t max_pending, const char* name = "fs-worker",
+	                      bool background = false);
 	/** Runs the jobs still queued, then joins. */
 	~SerialWorker();
 	SerialWorker(const SerialWorker&) = delete;
@@ -35,7 +39,7 @@ class SerialWorker
 	bool threaded() const { return max_pending_ > 0; }
 
    private:
-	void run(const char* name);
+	void run(const char* name, bool background);
 	void rethrow();
 
 	const size_t max_pending_;
