@@ -1,8 +1,8 @@
 #include <forest_slam/core/memory.h>
 
 #include <dirent.h>
-#include <sys/syscall.h>
 #include <sys/resource.h>
+#include <sys/syscall.h>
 #include <time.h>
 #include <unistd.h>
 
