@@ -555,13 +555,9 @@ OdometryStep LidarOdometry::processScan(const core::ScanPoints& scan)
 	for (const auto& p : cur.points) last_deskewed_.push_back(p.xyz);
 
 	// 7. Map update and motion model.
-	// Every scan is registered; the whole of every map_insert_every_scans-th
-	// goes into the maps, of the others only the points beyond
-	// map_insert_far_m. Near the sensor consecutive scans overlap almost
-	// wholly (12 cm apart on a walk) and the maps are full at their spacing;
-	// far away each scan adds points, and they hold the yaw. At the start
-	// every scan goes in whole: the young map, seen from one viewpoint, sets
-	// the yaw the whole map keeps.
+	// Whole scans or far points only (OdometryOptions::
+	// map_insert_every_scans); whole at the start, where the young map,
+	// seen from one viewpoint, sets the yaw the whole map keeps.
 	if (!left_start_ || scans_ % cfg_.odometry.map_insert_every_scans == 0)
 		insert(cur, pose);
 	else if (cfg_.odometry.map_insert_far_m > 0)
