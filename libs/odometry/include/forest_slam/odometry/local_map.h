@@ -152,6 +152,7 @@ class LocalMap : public RegistrationTarget
 	using PlaneGrid = core::FlatHashMap<PlaneVoxel>;
 	using PointGrid = core::FlatHashMap<PointCell>;
 	void addPoint(PointCell& c, float min_d2, const Eigen::Vector3f& p);
+	static void prefetchPoints(const PointGrid& g, Key k);
 	Key cellKey(const Eigen::Vector3f& p) const
 	{
 		const double s = o_.cell_m;
