@@ -196,16 +196,7 @@ void LocalMap::prefetchPoints(const PointGrid& g, Key k)
 	const char* b = reinterpret_cast<const char*>(c->blocks.data());
 	const size_t bytes =
 	    std::min<size_t>(c->blocks.size() * sizeof(float), 256);
-	for (size_t o = 0; o < bytes; o += 64)
-	{
-#if defined(__x86_64__)
-		// As FlatHashMap::prefetch: GCC drops a call whose only effect is
-		// __builtin_prefetch.
-		asm volatile("prefetcht0 %0" : : "m"(b[o]));
-#else
-		__builtin_prefetch(b + o);
-#endif
-	}
+	for (size_t o = 0; o < bytes; o += 64) core::prefetchLine(b + o);
 }
 
 void LocalMap::insert(const std::vector<Eigen::Vector3f>& edges,

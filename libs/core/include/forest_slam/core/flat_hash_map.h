@@ -35,6 +35,20 @@ inline int32_t unpackCellIndex(uint64_t key, int a)
 	return static_cast<int32_t>(v << 11) >> 11;
 }
 
+/** Asks the CPU to load the cache line holding p (a hint: no effect on the
+ * program's results). Tables larger than the caches are bound by memory
+ * latency; a bulk pass that asks a few items ahead overlaps those loads. */
+inline void prefetchLine(const void* p)
+{
+#if defined(__x86_64__)
+	// GCC 12 deems a function whose only effect is __builtin_prefetch
+	// "pure" and drops calls to it: the volatile asm keeps it.
+	asm volatile("prefetcht0 %0" : : "m"(*static_cast<const char*>(p)));
+#else
+	__builtin_prefetch(p);
+#endif
+}
+
 /** splitmix64's finaliser: neighbouring cells land far apart (linear
  * probing degrades on runs of nearby hashes). */
 inline uint64_t mixKey(uint64_t h)
@@ -93,23 +107,12 @@ class FlatHashMap
 			if (s.key == kEmpty) return nullptr;
 		}
 	}
-	/** Asks the CPU to load k's first slot: tables larger than the caches
-	 * are bound by memory latency, and a bulk insertion that prefetches a
-	 * few keys ahead overlaps those loads. Only a hint (no effect on the
-	 * contents). */
+	/** Asks the CPU to load k's first slot (prefetchLine): only a hint,
+	 * no effect on the contents. */
 	void prefetch(uint64_t k) const
 	{
 		if (slots_.empty()) return;
-		const Slot* s = &slots_[mixKey(k) & (slots_.size() - 1)];
-#if defined(__x86_64__)
-		// GCC 12 deems a function whose only effect is __builtin_prefetch
-		// "pure" and drops calls to it: the volatile asm keeps it.
-		asm volatile("prefetcht0 %0"
-		             :
-		             : "m"(*reinterpret_cast<const char*>(s)));
-#else
-		__builtin_prefetch(s);
-#endif
+		prefetchLine(&slots_[mixKey(k) & (slots_.size() - 1)]);
 	}
 	/** The value of k, default-constructed if new; `added` says which. */
 	V& tryEmplace(uint64_t k, bool* added = nullptr)
@@ -134,10 +137,7 @@ class FlatHashMap
 			}
 		}
 	}
-	V& operator[](uint64_t k)
-	{
-		return tryEmplace(k);
-	}
+	V& operator[](uint64_t k) { return tryEmplace(k); }
 
 	/** f(key, value) for every entry. */
 	template <class F>
