@@ -180,8 +180,9 @@ void LocalMap::addPoint(PointCell& c, float min_d2, const Eigen::Vector3f& p)
 
 namespace
 {
-/** How far ahead a bulk insertion asks for a cell's points: its table slot
- * was asked for kAhead points ahead and has arrived by then. */
+/** How far ahead a bulk insertion asks for a cell's table slot, and for
+ * the cell's points (by then the slot has arrived). */
+constexpr size_t kAhead = 16;
 constexpr size_t kBlocksAhead = 8;
 }  // namespace
 
@@ -228,7 +229,6 @@ void LocalMap::insert(const std::vector<Eigen::Vector3f>& edges,
 			        static_cast<int64_t>(std::floor(p.y() / sc)),
 			        static_cast<int64_t>(std::floor(p.z() / sc))));
 	}
-	constexpr size_t kAhead = 16;
 	for (size_t n = 0; n < index.size(); n++)
 	{
 		if (n + kAhead < index.size())
