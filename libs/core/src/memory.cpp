@@ -1,6 +1,7 @@
 #include <forest_slam/core/memory.h>
 
 #include <dirent.h>
+#include <malloc.h>
 #include <sys/resource.h>
 #include <sys/syscall.h>
 #include <time.h>
@@ -27,6 +28,31 @@ double currentRssMb()
 	if (n != 2) return 0;
 	return resident * static_cast<double>(sysconf(_SC_PAGESIZE)) /
 	       (1024.0 * 1024.0);
+}
+
+HeapUse heapUse()
+{
+	const struct mallinfo2 m = mallinfo2();
+	HeapUse h;
+	h.in_use_mb = toMb(m.uordblks + m.hblkhd);
+	h.free_mb = toMb(m.fordblks);
+	h.mapped_mb = toMb(m.hblkhd);
+	// malloc_info's XML is the only place glibc names its arenas.
+	char* buf = nullptr;
+	size_t len = 0;
+	if (std::FILE* f = open_memstream(&buf, &len))
+	{
+		if (malloc_info(0, f) == 0)
+		{
+			std::fflush(f);
+			for (const char* p = buf; p && (p = std::strstr(p, "<heap nr="));
+			     p++)
+				h.arenas++;
+		}
+		std::fclose(f);
+		std::free(buf);
+	}
+	return h;
 }
 
 double peakRssMb()

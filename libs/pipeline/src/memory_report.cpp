@@ -39,6 +39,10 @@ MemorySample sampleMemory(const MappingPipeline& p)
 		s.back_end_mb = toMb(b->cloudBytes());
 		s.spilled_mb += toMb(b->cloudBytesSpilled());
 	}
+	const core::HeapUse heap = core::heapUse();
+	s.heap_in_use_mb = heap.in_use_mb;
+	s.heap_free_mb = heap.free_mb;
+	s.malloc_arenas = heap.arenas;
 	s.trajectory_mb = toMb(
 	    core::vectorBytes(p.trajectory()) + core::vectorBytes(st.stage_ms) +
 	    core::vectorBytes(st.tree_ms) + core::vectorBytes(st.backend_ms));
@@ -47,17 +51,19 @@ MemorySample sampleMemory(const MappingPipeline& p)
 
 std::string describeMemory(const MemorySample& s)
 {
-	char b[512];
+	char b[768];
 	std::snprintf(
 	    b, sizeof(b),
 	    "RSS %.0f MB; dense map %.0f MB (%.2f M points), keyframes %.0f MB, "
 	    "submaps %.0f MB (%.2f M voxels), tree layer %.0f MB (%.2f M "
 	    "voxels), local map %.0f MB, ground %.0f MB, back-end %.0f MB, "
-	    "trajectory %.0f MB; spilled to disk %.0f MB",
+	    "trajectory %.0f MB; spilled to disk %.0f MB; malloc: %.0f MB in "
+	    "use, %.0f MB freed but held (%d arenas)",
 	    s.rss_mb, s.dense_map_mb, s.dense_points / 1e6, s.keyframes_mb,
 	    s.forest_map_mb, s.map_voxels / 1e6, s.tree_layer_mb,
 	    s.stem_voxels / 1e6, s.local_map_mb, s.ground_mb, s.back_end_mb,
-	    s.trajectory_mb, s.spilled_mb);
+	    s.trajectory_mb, s.spilled_mb, s.heap_in_use_mb, s.heap_free_mb,
+	    s.malloc_arenas);
 	return b;
 }
 
@@ -76,6 +82,9 @@ void sampleJson(std::ostream& os, const MemorySample& s)
 	   << ", \"back_end_mb\": " << s.back_end_mb
 	   << ", \"trajectory_mb\": " << s.trajectory_mb
 	   << ", \"spilled_mb\": " << s.spilled_mb
+	   << ", \"heap_in_use_mb\": " << s.heap_in_use_mb
+	   << ", \"heap_free_mb\": " << s.heap_free_mb
+	   << ", \"malloc_arenas\": " << s.malloc_arenas
 	   << ", \"dense_points\": " << s.dense_points
 	   << ", \"stem_voxels\": " << s.stem_voxels
 	   << ", \"map_voxels\": " << s.map_voxels << "}";

@@ -15,6 +15,18 @@ namespace forest_slam::core
 {
 /** Resident set size of this process now [MB]; 0 if /proc is unreadable. */
 double currentRssMb();
+/** What glibc's malloc holds now, over all its arenas (mallinfo2) [MB]:
+ * `in_use` is handed out to the program (blocks of the heap and the
+ * blocks mapped apart), `free` is freed but kept by malloc (free lists,
+ * holes between used blocks, the top of each arena). Resident memory that
+ * no container accounts for is mostly one of these two. */
+struct HeapUse
+{
+	double in_use_mb = 0, free_mb = 0, mapped_mb = 0;
+	int arenas = 0;  ///< malloc's arenas (one per thread that allocated, up to
+	                 ///< 8 x cores)
+};
+HeapUse heapUse();
 /** Peak resident set size of this process so far [MB] (getrusage). */
 double peakRssMb();
 /** CPU time of this process so far, user + system, all threads [s]. */

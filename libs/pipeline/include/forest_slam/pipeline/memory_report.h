@@ -26,6 +26,11 @@ struct MemorySample
 	double back_end_mb = 0;    ///< loop back-end keyframe clouds
 	double trajectory_mb = 0;  ///< poses and per-scan timings
 	double spilled_mb = 0;     ///< bytes moved to the spill files on disk
+	// glibc's malloc over all arenas (core::heapUse): what the RSS holds
+	// beyond the containers' estimates.
+	double heap_in_use_mb = 0;  ///< handed out (containers + all the rest)
+	double heap_free_mb = 0;    ///< freed, kept by malloc (fragmentation)
+	int malloc_arenas = 0;
 	uint64_t dense_points = 0, stem_voxels = 0, map_voxels = 0;
 	double partsMb() const
 	{
