@@ -55,6 +55,13 @@ HeapUse heapUse()
 	return h;
 }
 
+double releaseFreedHeap()
+{
+	const double before = currentRssMb();
+	malloc_trim(0);
+	return before - currentRssMb();
+}
+
 double peakRssMb()
 {
 	rusage u{};

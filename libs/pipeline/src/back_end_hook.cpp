@@ -11,7 +11,6 @@
 #include <forest_slam/odometry/lidar_odometry.h>
 #include <forest_slam/pipeline/mapping_pipeline.h>
 
-#include <malloc.h>
 #include <mrpt/obs/CObservationGPS.h>
 #include <mrpt/system/datetime.h>
 #include <GeographicLib/LocalCartesian.hpp>
@@ -333,7 +332,7 @@ void MappingPipeline::finishBackEnd()
 		correctForestMap(mapped, trajectory_);
 		// The tables freed on the way go back to the system (glibc keeps
 		// freed heap otherwise: +280 MB RSS on the handheld run).
-		malloc_trim(0);
+		core::releaseFreedHeap();
 		const auto t2 = std::chrono::steady_clock::now();
 		using S = std::chrono::duration<double>;
 		FS_LOG_INFO(

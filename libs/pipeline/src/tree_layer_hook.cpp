@@ -6,8 +6,6 @@
 #include <forest_slam/core/memory.h>
 #include <forest_slam/pipeline/mapping_pipeline.h>
 
-#include <malloc.h>
-
 #include <chrono>
 
 namespace forest_slam::pipeline
@@ -70,7 +68,7 @@ void MappingPipeline::finishTreeLayer()
 	// Every column is detected and the back-end's final correction is done
 	// (finishBackEnd runs first): the stem-band voxels are not read again.
 	tree_layer_->releaseStemVoxels();
-	malloc_trim(0);  // glibc keeps the freed heap of the map thread otherwise
+	core::releaseFreedHeap();  // what the map thread freed
 	stats_.tree_finish_ms = msSince(t0);
 	FS_LOG_INFO("tree layer: end-of-run detection in "
 	            << 1e-3 * stats_.tree_finish_ms << " s; peak RSS so far "
