@@ -36,9 +36,9 @@ void registerForestMapClasses()
 	std::call_once(once,
 	               []
 	               {
-		mrpt::rtti::registerClass(CLASS_ID(CForestMap));
-		(void)CForestMap::m_private_map_register_id;
-	});
+		               mrpt::rtti::registerClass(CLASS_ID(CForestMap));
+		               (void)CForestMap::m_private_map_register_id;
+	               });
 }
 
 namespace
@@ -57,8 +57,8 @@ Eigen::Isometry3d toIsometry(const mrpt::poses::CPose3D& p)
 /** Points of an observation we know how to read, in the sensor frame, split
  * by ring when the sensor has rings (for smoothness). */
 bool observationPoints(const mrpt::obs::CObservation& obs,
-					   std::vector<std::vector<Eigen::Vector3f>>& rings,
-					   mrpt::poses::CPose3D& sensor_pose)
+                       std::vector<std::vector<Eigen::Vector3f>>& rings,
+                       mrpt::poses::CPose3D& sensor_pose)
 {
 	using namespace mrpt::obs;
 	rings.clear();
@@ -95,7 +95,7 @@ bool observationPoints(const mrpt::obs::CObservation& obs,
 
 // ---------------------------------------------------------------- options
 void ForestMapOptions::loadFromConfigFile(
-	const mrpt::config::CConfigFileBase& c, const std::string& s)
+    const mrpt::config::CConfigFileBase& c, const std::string& s)
 {
 	FS_LOAD(c, s, submap_size_m);
 	FS_LOAD(c, s, edge_voxel_m);
@@ -135,7 +135,7 @@ void ForestMapOptions::validate() const
 	{
 		if (!(v > 0))
 			throw std::invalid_argument(
-				std::string(name) + " must be > 0, got " + std::to_string(v));
+			    std::string(name) + " must be > 0, got " + std::to_string(v));
 	};
 	positive(submap_size_m, "submap_size_m");
 	positive(edge_voxel_m, "edge_voxel_m");
@@ -144,11 +144,11 @@ void ForestMapOptions::validate() const
 	positive(likelihood_sigma_m, "likelihood_sigma_m");
 	if (edge_voxel_m > submap_size_m || planar_voxel_m > submap_size_m)
 		throw std::invalid_argument(
-			"voxel sizes must not exceed submap_size_m");
+		    "voxel sizes must not exceed submap_size_m");
 	if (smoothness_half_window < 1 || smoothness_half_window > 50)
 		throw std::invalid_argument(
-			"smoothness_half_window must be in [1,50], got " +
-			std::to_string(smoothness_half_window));
+		    "smoothness_half_window must be in [1,50], got " +
+		    std::to_string(smoothness_half_window));
 	if (likelihood_decimation < 1)
 		throw std::invalid_argument("likelihood_decimation must be >= 1");
 }
@@ -157,20 +157,20 @@ void ForestMapOptions::validate() const
 CForestMap::TMapDefinition::TMapDefinition() = default;
 
 void CForestMap::TMapDefinition::loadFromConfigFile_map_specific(
-	const mrpt::config::CConfigFileBase& source,
-	const std::string& sectionNamePrefix)
+    const mrpt::config::CConfigFileBase& source,
+    const std::string& sectionNamePrefix)
 {
 	forestOpts.loadFromConfigFile(source, sectionNamePrefix + "_creationOpts");
 }
 
 void CForestMap::TMapDefinition::dumpToTextStream_map_specific(
-	std::ostream& out) const
+    std::ostream& out) const
 {
 	forestOpts.dumpToTextStream(out);
 }
 
 mrpt::maps::CMetricMap* CForestMap::internal_CreateFromMapDefinition(
-	const mrpt::maps::TMetricMapInitializer& _def)
+    const mrpt::maps::TMetricMapInitializer& _def)
 {
 	const auto& def = dynamic_cast<const CForestMap::TMapDefinition&>(_def);
 	return new CForestMap(def.forestOpts);
@@ -186,8 +186,8 @@ void CForestMap::setOptions(const TOptions& opts)
 {
 	opts.validate();
 	const bool geometry_changed = opts.submap_size_m != opts_.submap_size_m ||
-								  opts.edge_voxel_m != opts_.edge_voxel_m ||
-								  opts.planar_voxel_m != opts_.planar_voxel_m;
+	                              opts.edge_voxel_m != opts_.edge_voxel_m ||
+	                              opts.planar_voxel_m != opts_.planar_voxel_m;
 	opts_ = opts;
 	if (geometry_changed) internal_clear();
 }
@@ -286,15 +286,15 @@ void CForestMap::insertPoints(const std::vector<Eigen::Vector3f>& pts,
 }
 
 void CForestMap::insertFeatures(const std::vector<Eigen::Vector3f>& edge_map,
-								const std::vector<Eigen::Vector3f>& planar_map)
+                                const std::vector<Eigen::Vector3f>& planar_map)
 {
 	insertFeatures(edge_map, planar_map, Eigen::Isometry3d::Identity());
 }
 
 void CForestMap::insertFeatures(
-	const std::vector<Eigen::Vector3f>& edge_sensor,
-	const std::vector<Eigen::Vector3f>& planar_sensor,
-	const Eigen::Isometry3d& sensor_to_map)
+    const std::vector<Eigen::Vector3f>& edge_sensor,
+    const std::vector<Eigen::Vector3f>& planar_sensor,
+    const Eigen::Isometry3d& sensor_to_map)
 {
 	const Eigen::Isometry3f T = sensor_to_map.cast<float>();
 	insertPoints(edge_sensor, true, T);
@@ -333,8 +333,8 @@ std::vector<SubmapKey> CForestMap::submapsNear(const Eigen::Vector3d& c,
 }
 
 void CForestMap::collectNear(const Eigen::Vector3d& centre, double radius_m,
-							 std::vector<Eigen::Vector3f>& edge,
-							 std::vector<Eigen::Vector3f>& planar) const
+                             std::vector<Eigen::Vector3f>& edge,
+                             std::vector<Eigen::Vector3f>& planar) const
 {
 	edge.clear();
 	planar.clear();
@@ -399,7 +399,7 @@ void CForestMap::internal_clear()
 }
 
 std::vector<uint8_t> smoothnessEdgeFlags(
-	const std::vector<Eigen::Vector3f>& pts, int w, double edge_threshold)
+    const std::vector<Eigen::Vector3f>& pts, int w, double edge_threshold)
 {
 	const int n = static_cast<int>(pts.size());
 	std::vector<uint8_t> flags(pts.size(), 0);
@@ -416,14 +416,14 @@ std::vector<uint8_t> smoothnessEdgeFlags(
 }
 
 bool CForestMap::internal_insertObservation(
-	const mrpt::obs::CObservation& obs,
-	const std::optional<const mrpt::poses::CPose3D>& robotPose)
+    const mrpt::obs::CObservation& obs,
+    const std::optional<const mrpt::poses::CPose3D>& robotPose)
 {
 	std::vector<std::vector<Eigen::Vector3f>> rings;
 	mrpt::poses::CPose3D sensor_pose;
 	if (!observationPoints(obs, rings, sensor_pose)) return false;
 	const mrpt::poses::CPose3D robot =
-		robotPose ? *robotPose : mrpt::poses::CPose3D();
+	    robotPose ? *robotPose : mrpt::poses::CPose3D();
 	const Eigen::Isometry3d T = toIsometry(robot + sensor_pose);
 	const float max_r2 =
 	    static_cast<float>(opts_.max_insert_range_m * opts_.max_insert_range_m);
@@ -439,7 +439,7 @@ bool CForestMap::internal_insertObservation(
 		{
 			const auto flags =
 			    smoothnessEdgeFlags(kept, opts_.smoothness_half_window,
-				opts_.edge_smoothness_threshold);
+			                        opts_.edge_smoothness_threshold);
 			for (size_t i = 0; i < kept.size(); i++)
 				(flags[i] ? edges : planar).push_back(kept[i]);
 		}
@@ -451,11 +451,11 @@ bool CForestMap::internal_insertObservation(
 }
 
 bool CForestMap::internal_canComputeObservationLikelihood(
-	const mrpt::obs::CObservation& obs) const
+    const mrpt::obs::CObservation& obs) const
 {
 	using namespace mrpt::obs;
 	return dynamic_cast<const CObservationRotatingScan*>(&obs) ||
-		   dynamic_cast<const CObservationPointCloud*>(&obs);
+	       dynamic_cast<const CObservationPointCloud*>(&obs);
 }
 
 double CForestMap::internal_computeObservationLikelihood(
@@ -468,7 +468,7 @@ double CForestMap::internal_computeObservationLikelihood(
 	const Eigen::Isometry3f T =
 	    toIsometry(takenFrom + sensor_pose).cast<float>();
 	const double inv_2s2 =
-		1.0 / (2 * opts_.likelihood_sigma_m * opts_.likelihood_sigma_m);
+	    1.0 / (2 * opts_.likelihood_sigma_m * opts_.likelihood_sigma_m);
 	// Far from any centroid, a point contributes this floor (robustness).
 	const double floor_lik = std::exp(-9.0 / 2);
 	double log_lik = 0;
@@ -547,44 +547,55 @@ std::string CForestMap::asString() const
 	os << "CForestMap: " << submaps_.size() << " submaps of "
 	   << opts_.submap_size_m << " m, " << edgePointCount() << " edge voxels ("
 	   << opts_.edge_voxel_m << " m), " << planarPointCount()
-	   << " planar voxels (" << opts_.planar_voxel_m << " m), "
-	   << trees_.size() << " trees";
+	   << " planar voxels (" << opts_.planar_voxel_m << " m), " << trees_.size()
+	   << " trees";
 	return os.str();
 }
 
-void CForestMap::saveMetricMapRepresentationToFile(const std::string& prefix) const
+void CForestMap::saveMetricMapRepresentationToFile(
+    const std::string& prefix) const
 {
-	auto write_cloud = [&](const std::string& path, bool edges) {
-		core::writeFileAtomically(path, [&](std::ostream& os) {
-			char buf[96];
-			for (const auto& kv : submaps_)
-				(edges ? kv.second.edge : kv.second.planar)
-				    .forEachVoxel(
-				        [&](const VoxelKey&, const VoxelCloud::Accum& a)
-				        {
-					        const auto c = a.centroid();
-					        std::snprintf(buf, sizeof(buf), "%.4f %.4f %.4f\n",
-					                      c.x(), c.y(), c.z());
-					        os << buf;
-				        });
-		});
+	auto write_cloud = [&](const std::string& path, bool edges)
+	{
+		core::writeFileAtomically(
+		    path,
+		    [&](std::ostream& os)
+		    {
+			    char buf[96];
+			    for (const auto& kv : submaps_)
+				    (edges ? kv.second.edge : kv.second.planar)
+				        .forEachVoxel(
+				            [&](const VoxelKey&, const VoxelCloud::Accum& a)
+				            {
+					            const auto c = a.centroid();
+					            std::snprintf(buf, sizeof(buf),
+					                          "%.4f %.4f %.4f\n", c.x(), c.y(),
+					                          c.z());
+					            os << buf;
+				            });
+		    });
 	};
 	write_cloud(prefix + "_edge.xyz", true);
 	write_cloud(prefix + "_planar.xyz", false);
-	core::writeFileAtomically(prefix + "_trees.csv", [&](std::ostream& os) {
-		os << "id,x,y,z_ground,dbh_m,height_m,n_points,fit_rmse_m,arc_coverage_deg,n_slices,quality\n";
-		char buf[256];
-		for (const auto& t : trees_)
-		{
-			std::snprintf(buf, sizeof(buf),
-						  "%u,%.3f,%.3f,%.3f,%.4f,%.2f,%u,%.4f,%.1f,%u,%u\n",
-						  t.id, t.x, t.y, t.z_ground, t.dbh_m, t.height_m,
-						  t.n_points, t.fit_rmse_m, t.arc_coverage_deg,
-						  static_cast<unsigned>(t.n_slices),
-						  static_cast<unsigned>(t.quality));
-			os << buf;
-		}
-	});
+	core::writeFileAtomically(
+	    prefix + "_trees.csv",
+	    [&](std::ostream& os)
+	    {
+		    os << "id,x,y,z_ground,dbh_m,height_m,n_points,fit_rmse_m,arc_"
+		          "coverage_deg,n_slices,quality\n";
+		    char buf[256];
+		    for (const auto& t : trees_)
+		    {
+			    std::snprintf(
+			        buf, sizeof(buf),
+			        "%u,%.3f,%.3f,%.3f,%.4f,%.2f,%u,%.4f,%.1f,%u,%u\n", t.id,
+			        t.x, t.y, t.z_ground, t.dbh_m, t.height_m, t.n_points,
+			        t.fit_rmse_m, t.arc_coverage_deg,
+			        static_cast<unsigned>(t.n_slices),
+			        static_cast<unsigned>(t.quality));
+			    os << buf;
+		    }
+	    });
 }
 
 // -------------------------------------------------------- serialization
@@ -629,10 +640,10 @@ void CForestMap::serializeTo(mrpt::serialization::CArchive& out) const
 		    "CForestMap: serialized with segments apart (call "
 		    "transformSegments first)");
 	out << opts_.submap_size_m << opts_.edge_voxel_m << opts_.planar_voxel_m
-		<< opts_.edge_smoothness_threshold
-		<< static_cast<int32_t>(opts_.smoothness_half_window)
-		<< opts_.max_insert_range_m << opts_.likelihood_sigma_m
-		<< static_cast<int32_t>(opts_.likelihood_decimation);
+	    << opts_.edge_smoothness_threshold
+	    << static_cast<int32_t>(opts_.smoothness_half_window)
+	    << opts_.max_insert_range_m << opts_.likelihood_sigma_m
+	    << static_cast<int32_t>(opts_.likelihood_decimation);
 	out << genericMapParams;
 	out.WriteAs<uint64_t>(submaps_.size());
 	for (const auto& kv : submaps_)
@@ -644,8 +655,8 @@ void CForestMap::serializeTo(mrpt::serialization::CArchive& out) const
 	out.WriteAs<uint64_t>(trees_.size());
 	for (const auto& t : trees_)
 		out << t.id << t.x << t.y << t.z_ground << t.dbh_m << t.height_m
-			<< t.n_points << t.fit_rmse_m << t.arc_coverage_deg << t.n_slices
-			<< t.quality;
+		    << t.n_points << t.fit_rmse_m << t.arc_coverage_deg << t.n_slices
+		    << t.quality;
 }
 
 void CForestMap::serializeFrom(mrpt::serialization::CArchive& in,
@@ -655,8 +666,8 @@ void CForestMap::serializeFrom(mrpt::serialization::CArchive& in,
 	TOptions o;
 	int32_t hw, dec;
 	in >> o.submap_size_m >> o.edge_voxel_m >> o.planar_voxel_m >>
-		o.edge_smoothness_threshold >> hw >> o.max_insert_range_m >>
-		o.likelihood_sigma_m >> dec;
+	    o.edge_smoothness_threshold >> hw >> o.max_insert_range_m >>
+	    o.likelihood_sigma_m >> dec;
 	o.smoothness_half_window = hw;
 	o.likelihood_decimation = dec;
 	o.validate();
@@ -680,8 +691,8 @@ void CForestMap::serializeFrom(mrpt::serialization::CArchive& in,
 	trees_.resize(nt);
 	for (auto& t : trees_)
 		in >> t.id >> t.x >> t.y >> t.z_ground >> t.dbh_m >> t.height_m >>
-			t.n_points >> t.fit_rmse_m >> t.arc_coverage_deg >> t.n_slices >>
-			t.quality;
+		    t.n_points >> t.fit_rmse_m >> t.arc_coverage_deg >> t.n_slices >>
+		    t.quality;
 	markDirty();
 }
 

@@ -50,20 +50,20 @@ using SubmapKey = VoxelKey;
 struct ForestMapOptions : public mrpt::config::CLoadableOptions
 {
 	double submap_size_m = 20.0;  ///< edge of the cubic submaps
-	double edge_voxel_m = 0.2;	///< voxel filter of edge points
+	double edge_voxel_m = 0.2;    ///< voxel filter of edge points
 	double planar_voxel_m = 0.4;  ///< voxel filter of planar points
 	/** Insertion of a raw rotating scan: LOAM smoothness threshold above
 	 * which a point is an edge (below: planar). */
 	double edge_smoothness_threshold = 0.1;
-	int smoothness_half_window = 5;	 ///< points each side, same ring
+	int smoothness_half_window = 5;  ///< points each side, same ring
 	double max_insert_range_m = 80.0;
 	double likelihood_sigma_m = 0.2;  ///< for computeObservationLikelihood
 	int likelihood_decimation = 10;
 
 	void loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
-							const std::string& section) override;
+	                        const std::string& section) override;
 	void saveToConfigFile(mrpt::config::CConfigFileBase& c,
-						  const std::string& section) const override;
+	                      const std::string& section) const override;
 	/** Throws std::invalid_argument naming the bad field. */
 	void validate() const;
 };
@@ -83,17 +83,17 @@ class CForestMap : public mrpt::maps::CMetricMap
 
 	/** Inserts already-classified feature points given in the map frame. */
 	void insertFeatures(const std::vector<Eigen::Vector3f>& edge_map,
-						const std::vector<Eigen::Vector3f>& planar_map);
+	                    const std::vector<Eigen::Vector3f>& planar_map);
 	/** Same, with points in the sensor frame and the sensor pose in the map. */
 	void insertFeatures(const std::vector<Eigen::Vector3f>& edge_sensor,
-						const std::vector<Eigen::Vector3f>& planar_sensor,
-						const Eigen::Isometry3d& sensor_to_map);
+	                    const std::vector<Eigen::Vector3f>& planar_sensor,
+	                    const Eigen::Isometry3d& sensor_to_map);
 
 	/** Edge and planar centroids of all submaps whose cube intersects the
 	 * sphere (centre, radius): the local map for scan-to-map matching. */
 	void collectNear(const Eigen::Vector3d& centre, double radius_m,
-					 std::vector<Eigen::Vector3f>& edge,
-					 std::vector<Eigen::Vector3f>& planar) const;
+	                 std::vector<Eigen::Vector3f>& edge,
+	                 std::vector<Eigen::Vector3f>& planar) const;
 	/** Keys of the submaps intersecting that sphere. */
 	std::vector<SubmapKey> submapsNear(const Eigen::Vector3d& centre,
 	                                   double radius_m) const;
@@ -133,7 +133,7 @@ class CForestMap : public mrpt::maps::CMetricMap
 	// CMetricMap interface
 	bool isEmpty() const override;
 	void saveMetricMapRepresentationToFile(
-		const std::string& filNamePrefix) const override;
+	    const std::string& filNamePrefix) const override;
 	const mrpt::maps::CSimplePointsMap* getAsSimplePointsMap() const override;
 	void getVisualizationInto(mrpt::opengl::CSetOfObjects& o) const override;
 	std::string asString() const override;
@@ -145,14 +145,14 @@ class CForestMap : public mrpt::maps::CMetricMap
    protected:
 	void internal_clear() override;
 	bool internal_insertObservation(
-		const mrpt::obs::CObservation& obs,
-		const std::optional<const mrpt::poses::CPose3D>& robotPose =
-			std::nullopt) override;
+	    const mrpt::obs::CObservation& obs,
+	    const std::optional<const mrpt::poses::CPose3D>& robotPose =
+	        std::nullopt) override;
 	double internal_computeObservationLikelihood(
-		const mrpt::obs::CObservation& obs,
-		const mrpt::poses::CPose3D& takenFrom) const override;
+	    const mrpt::obs::CObservation& obs,
+	    const mrpt::poses::CPose3D& takenFrom) const override;
 	bool internal_canComputeObservationLikelihood(
-		const mrpt::obs::CObservation& obs) const override;
+	    const mrpt::obs::CObservation& obs) const override;
 
    private:
 	TOptions opts_;
@@ -161,7 +161,10 @@ class CForestMap : public mrpt::maps::CMetricMap
 	std::vector<TreeRecord> trees_;
 	mutable std::shared_ptr<mrpt::maps::CSimplePointsMap> cached_points_;
 
-	Submap& submapFor(const Eigen::Vector3f& p) { return submapIn(submaps_, p); }
+	Submap& submapFor(const Eigen::Vector3f& p)
+	{
+		return submapIn(submaps_, p);
+	}
 	Submap& submapIn(SubmapTable& table, const Eigen::Vector3f& p) const;
 	/** Moves `pts` by T into the edge or planar clouds of their submaps. */
 	void insertPoints(const std::vector<Eigen::Vector3f>& pts, bool edges,
@@ -179,7 +182,7 @@ void registerForestMapClasses();
  * (smoothness > edge_threshold), 0 if planar. Points in the sensor frame,
  * ordered by firing; the first/last `half_window` points are planar. */
 std::vector<uint8_t> smoothnessEdgeFlags(
-	const std::vector<Eigen::Vector3f>& ring_points, int half_window,
-	double edge_threshold);
+    const std::vector<Eigen::Vector3f>& ring_points, int half_window,
+    double edge_threshold);
 
 }  // namespace forest_slam::map
