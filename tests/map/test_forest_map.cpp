@@ -19,7 +19,7 @@ TEST(VoxelCloud, KeepsExactCentroidPerVoxel)
 	c.insert({0.1f, 0.1f, 0.1f});
 	c.insert({0.3f, 0.1f, 0.1f});
 	c.insert({0.7f, 0.1f, 0.1f});  // next voxel in x
-	c.insert({NAN, 0, 0});	// ignored
+	c.insert({NAN, 0, 0});         // ignored
 	ASSERT_EQ(c.size(), 2u);
 	Eigen::Vector3f cen;
 	ASSERT_TRUE(c.centroidAt({0.2f, 0.2f, 0.2f}, cen));
@@ -44,7 +44,8 @@ TEST(ForestMap, InsertionVoxelFilteringAndSubmaps)
 	for (int i = 0; i < 200; i++)
 		for (int j = 0; j < 200; j++)
 			planar.emplace_back(0.025f + i * 0.05f, 0.025f + j * 0.05f, 0.01f);
-	for (int k = 0; k < 200; k++) edge.emplace_back(5.05f, 5.05f, 0.005f + k * 0.01f);
+	for (int k = 0; k < 200; k++)
+		edge.emplace_back(5.05f, 5.05f, 0.005f + k * 0.01f);
 	m.insertFeatures(edge, planar);
 	EXPECT_EQ(m.planarPointCount(), 400u);
 	EXPECT_EQ(m.edgePointCount(), 20u);
@@ -68,7 +69,8 @@ TEST(ForestMap, NeighbourhoodQuery)
 	CForestMap m;  // 20 m submaps
 	std::vector<Eigen::Vector3f> pts;
 	for (int x = -50; x <= 50; x += 10)
-		for (int y = -50; y <= 50; y += 10) pts.emplace_back(x + 0.5f, y + 0.5f, 1.f);
+		for (int y = -50; y <= 50; y += 10)
+			pts.emplace_back(x + 0.5f, y + 0.5f, 1.f);
 	m.insertFeatures({}, pts);
 	std::vector<Eigen::Vector3f> e, p;
 	m.collectNear({0, 0, 0}, 5.0, e, p);
@@ -77,8 +79,7 @@ TEST(ForestMap, NeighbourhoodQuery)
 	const auto keys = m.submapsNear({0, 0, 0}, 5.0);
 	EXPECT_EQ(keys.size(), 4u);
 	EXPECT_EQ(p.size(), 16u);
-	for (const auto& q : p)
-		EXPECT_LT(q.head<2>().cwiseAbs().maxCoeff(), 20.f);
+	for (const auto& q : p) EXPECT_LT(q.head<2>().cwiseAbs().maxCoeff(), 20.f);
 	m.collectNear({0, 0, 0}, 60.0, e, p);
 	EXPECT_EQ(p.size(), pts.size());
 	m.collectNear({500, 0, 0}, 10.0, e, p);
@@ -147,8 +148,9 @@ planar_voxel_m = 0.25
 	EXPECT_NO_THROW(cfg.checkNoUnknownKeys());
 
 	auto bad = core::TrackedConfig::fromText(
-		"[map]\nforestMap_count = 1\n[map_forestMap_00_creationOpts]\nedge_voxel_m = -1\n",
-		"bad.ini");
+	    "[map]\nforestMap_count = "
+	    "1\n[map_forestMap_00_creationOpts]\nedge_voxel_m = -1\n",
+	    "bad.ini");
 	mrpt::maps::TSetOfMetricMapInitializers inits2;
 	EXPECT_THROW(inits2.loadFromConfigFile(bad, "map"), std::exception);
 }
@@ -156,9 +158,10 @@ planar_voxel_m = 0.25
 TEST(ForestMap, InsertsRealScanAndLikelihoodPeaksAtTruePose)
 {
 	io::RawlogReader r(std::string(FOREST_SLAM_SHARED_DIR) +
-					   "/data/mrpt/rot_scan_velodyne.rawlog");
+	                   "/data/mrpt/rot_scan_velodyne.rawlog");
 	auto obs = r.next();
-	auto scan = std::dynamic_pointer_cast<mrpt::obs::CObservationRotatingScan>(obs);
+	auto scan =
+	    std::dynamic_pointer_cast<mrpt::obs::CObservationRotatingScan>(obs);
 	ASSERT_TRUE(scan);
 	scan->lidarModel = "VLP16";
 	CForestMap m;
@@ -166,14 +169,15 @@ TEST(ForestMap, InsertsRealScanAndLikelihoodPeaksAtTruePose)
 	EXPECT_GT(m.edgePointCount(), 50u);
 	EXPECT_GT(m.planarPointCount(), 500u);
 	EXPECT_TRUE(m.canComputeObservationLikelihood(*scan));
-	const double at_true = m.computeObservationLikelihood(*scan, mrpt::poses::CPose3D());
+	const double at_true =
+	    m.computeObservationLikelihood(*scan, mrpt::poses::CPose3D());
 	const double shifted = m.computeObservationLikelihood(
-		*scan, mrpt::poses::CPose3D(0.6, 0.3, 0, 0.1, 0, 0));
+	    *scan, mrpt::poses::CPose3D(0.6, 0.3, 0, 0.1, 0, 0));
 	EXPECT_GT(at_true, shifted + 10.0);
 
 	const auto prefix = (std::filesystem::temp_directory_path() /
-						 ("fs_map_" + std::to_string(::getpid())))
-							.string();
+	                     ("fs_map_" + std::to_string(::getpid())))
+	                        .string();
 	m.saveMetricMapRepresentationToFile(prefix);
 	EXPECT_GT(std::filesystem::file_size(prefix + "_edge.xyz"), 100u);
 	EXPECT_GT(std::filesystem::file_size(prefix + "_planar.xyz"), 1000u);
@@ -246,4 +250,59 @@ TEST(ForestMap, SegmentsFollowTheirOwnCorrection)
 	mrpt::io::CMemoryStream buf;
 	auto arch = mrpt::serialization::archiveFrom(buf);
 	EXPECT_NO_THROW(arch << m);
+}
+
+TEST(ForestMap, FrozenSegmentIsCompactAndMergesBackUnchanged)
+{
+	// 30 x 30 x 4 edge voxels and a ground of planar voxels over three
+	// submaps, mapped once into a map that is never split and once into one
+	// whose segment is frozen and then merged back with no correction.
+	map::ForestMapOptions o;
+	o.submap_size_m = 20;
+	o.edge_voxel_m = 0.2;
+	o.planar_voxel_m = 0.4;
+	std::vector<Eigen::Vector3f> edge, planar;
+	for (int i = 0; i < 30; i++)
+		for (int j = 0; j < 30; j++)
+		{
+			for (int k = 0; k < 4; k++)
+				edge.emplace_back(15 + 0.2f * i + 0.05f, 0.2f * j + 0.07f,
+				                  0.2f * k + 0.11f);
+			planar.emplace_back(0.4f * i + 0.1f, 1.3f * j + 0.2f, -0.3f);
+		}
+	CForestMap whole(o), split(o);
+	whole.insertFeatures(edge, planar);
+	split.insertFeatures(edge, planar);
+	const size_t table_bytes = split.memoryBytes();
+	split.startSegment();
+	EXPECT_EQ(split.segmentCount(), 2u);
+	EXPECT_TRUE(split.submaps().empty());
+	EXPECT_EQ(split.edgePointCount(), 3600u);
+	EXPECT_EQ(split.planarPointCount(), 900u);
+	// Sum and count only: 16 bytes a voxel (plus a few per submap), where
+	// the tables hold ~50.
+	EXPECT_LE(split.memoryBytes(), 4500u * 16 + 256);
+	EXPECT_GT(table_bytes, 2 * split.memoryBytes());
+	split.transformSegments([](size_t, const Eigen::Vector3f&)
+	                        { return Eigen::Isometry3f::Identity(); });
+	EXPECT_EQ(split.segmentCount(), 1u);
+	ASSERT_EQ(split.submaps().size(), whole.submaps().size());
+	for (const auto& [key, sm] : whole.submaps())
+	{
+		const auto it = split.submaps().find(key);
+		ASSERT_NE(it, split.submaps().end());
+		for (const bool edges : {true, false})
+		{
+			const auto& a = edges ? sm.edge : sm.planar;
+			const auto& b = edges ? it->second.edge : it->second.planar;
+			ASSERT_EQ(a.size(), b.size());
+			a.forEachVoxel(
+			    [&](const map::VoxelKey&, const map::VoxelCloud::Accum& v)
+			    {
+				    Eigen::Vector3f c;
+				    ASSERT_TRUE(b.centroidAt(v.centroid(), c));
+				    EXPECT_NEAR((c - v.centroid()).norm(), 0, 1e-5);
+			    });
+		}
+	}
 }

@@ -91,6 +91,19 @@ bool observationPoints(const mrpt::obs::CObservation& obs,
 	}
 	return false;
 }
+
+size_t submapEdgeCount(const CForestMap::SubmapTable& t)
+{
+	size_t n = 0;
+	for (const auto& kv : t) n += kv.second.edge.size();
+	return n;
+}
+size_t submapPlanarCount(const CForestMap::SubmapTable& t)
+{
+	size_t n = 0;
+	for (const auto& kv : t) n += kv.second.planar.size();
+	return n;
+}
 }  // namespace
 
 // ---------------------------------------------------------------- options
@@ -214,7 +227,25 @@ Submap& CForestMap::submapIn(SubmapTable& table, const Eigen::Vector3f& p) const
 void CForestMap::startSegment()
 {
 	if (submaps_.empty()) return;  // nothing to keep apart yet
-	frozen_.push_back(std::move(submaps_));
+	// The segment's voxels move into one array, submap by submap (each
+	// table freed once copied), in the order transformSegments reads the
+	// tables: the merged map is the same, bit for bit.
+	FrozenSegment seg;
+	seg.edge = submapEdgeCount(submaps_);
+	seg.planar = submapPlanarCount(submaps_);
+	seg.voxels.reserve(seg.edge + seg.planar);
+	seg.counts.reserve(submaps_.size());
+	const auto copy = [&](const VoxelKey&, const VoxelCloud::Accum& a)
+	{ seg.voxels.push_back(a); };
+	for (auto it = submaps_.begin(); it != submaps_.end();
+	     it = submaps_.erase(it))
+	{
+		it->second.edge.forEachVoxel(copy);
+		it->second.planar.forEachVoxel(copy);
+		seg.counts.emplace_back(it->second.edge.size(),
+		                        it->second.planar.size());
+	}
+	frozen_.push_back(std::move(seg));
 	submaps_ = SubmapTable();
 	markDirty();
 }
@@ -223,28 +254,38 @@ void CForestMap::transformSegments(
     const std::function<Eigen::Isometry3f(size_t, const Eigen::Vector3f&)>& T)
 {
 	SubmapTable out;
-	const auto move = [&](SubmapTable& table, size_t segment)
+	const auto move =
+	    [&](const VoxelCloud::Accum& a, bool edges, size_t segment)
 	{
-		// Each submap is released once moved.
-		for (auto it = table.begin(); it != table.end(); it = table.erase(it))
-			for (const bool edges : {true, false})
-				(edges ? it->second.edge : it->second.planar)
-				    .forEachVoxel(
-				        [&](const VoxelKey&, const VoxelCloud::Accum& a)
-				        {
-					        const Eigen::Vector3f q =
-					            T(segment, a.centroid()) * a.centroid();
-					        if (!q.allFinite()) return;
-					        VoxelCloud::Accum b;
-					        b.sum = q * static_cast<float>(a.count);
-					        b.count = a.count;
-					        Submap& sm = submapIn(out, q);
-					        VoxelCloud& c = edges ? sm.edge : sm.planar;
-					        c.add(c.keyOf(q), b);
-				        });
+		const Eigen::Vector3f q = T(segment, a.centroid()) * a.centroid();
+		if (!q.allFinite()) return;
+		VoxelCloud::Accum b;
+		b.sum = q * static_cast<float>(a.count);
+		b.count = a.count;
+		Submap& sm = submapIn(out, q);
+		VoxelCloud& c = edges ? sm.edge : sm.planar;
+		c.add(c.keyOf(q), b);
 	};
-	for (size_t s = 0; s < frozen_.size(); s++) move(frozen_[s], s);
-	move(submaps_, frozen_.size());
+	for (size_t s = 0; s < frozen_.size(); s++)
+	{
+		// Each segment is released once moved.
+		const FrozenSegment seg = std::move(frozen_[s]);
+		const VoxelCloud::Accum* v = seg.voxels.data();
+		for (const auto& [edges, planar] : seg.counts)
+		{
+			for (uint32_t i = 0; i < edges; i++) move(*v++, true, s);
+			for (uint32_t i = 0; i < planar; i++) move(*v++, false, s);
+		}
+	}
+	const size_t current = frozen_.size();
+	for (auto it = submaps_.begin(); it != submaps_.end();
+	     it = submaps_.erase(it))
+	{
+		it->second.edge.forEachVoxel([&](const VoxelKey&, const auto& a)
+		                             { move(a, true, current); });
+		it->second.planar.forEachVoxel([&](const VoxelKey&, const auto& a)
+		                               { move(a, false, current); });
+	}
 	frozen_.clear();
 	submaps_ = std::move(out);
 	markDirty();
@@ -348,32 +389,24 @@ void CForestMap::collectNear(const Eigen::Vector3d& centre, double radius_m,
 
 size_t CForestMap::memoryBytes() const
 {
-	size_t n = core::vectorBytes(frozen_);
-	const auto table = [&](const SubmapTable& t)
-	{
-		n += core::hashMapBytes(t);
-		for (const auto& kv : t)
-			n += kv.second.edge.memoryBytes() + kv.second.planar.memoryBytes();
-	};
-	for (const auto& t : frozen_) table(t);
-	table(submaps_);
+	size_t n = core::vectorBytes(frozen_) + core::hashMapBytes(submaps_);
+	for (const auto& seg : frozen_)
+		n += core::vectorBytes(seg.voxels) + core::vectorBytes(seg.counts);
+	for (const auto& kv : submaps_)
+		n += kv.second.edge.memoryBytes() + kv.second.planar.memoryBytes();
 	return n;
 }
 
 size_t CForestMap::edgePointCount() const
 {
-	size_t n = 0;
-	for (const auto& t : frozen_)
-		for (const auto& kv : t) n += kv.second.edge.size();
-	for (const auto& kv : submaps_) n += kv.second.edge.size();
+	size_t n = submapEdgeCount(submaps_);
+	for (const auto& seg : frozen_) n += seg.edge;
 	return n;
 }
 size_t CForestMap::planarPointCount() const
 {
-	size_t n = 0;
-	for (const auto& t : frozen_)
-		for (const auto& kv : t) n += kv.second.planar.size();
-	for (const auto& kv : submaps_) n += kv.second.planar.size();
+	size_t n = submapPlanarCount(submaps_);
+	for (const auto& seg : frozen_) n += seg.planar;
 	return n;
 }
 

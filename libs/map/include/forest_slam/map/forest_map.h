@@ -157,7 +157,18 @@ class CForestMap : public mrpt::maps::CMetricMap
    private:
 	TOptions opts_;
 	SubmapTable submaps_;
-	std::vector<SubmapTable> frozen_;  ///< earlier segments, oldest first
+	/** A segment no point is inserted into any more: its voxels (sum and
+	 * count) in one array, 16 bytes each against ~50 in the submaps'
+	 * tables. Only transformSegments reads them back, and it re-buckets
+	 * every voxel anyway. In table order: per submap, its edge voxels then
+	 * its planar ones (`counts`). */
+	struct FrozenSegment
+	{
+		std::vector<VoxelCloud::Accum> voxels;
+		std::vector<std::pair<uint32_t, uint32_t>> counts;  ///< edge, planar
+		size_t edge = 0, planar = 0;                        ///< totals
+	};
+	std::vector<FrozenSegment> frozen_;  ///< earlier segments, oldest first
 	std::vector<TreeRecord> trees_;
 	mutable std::shared_ptr<mrpt::maps::CSimplePointsMap> cached_points_;
 
