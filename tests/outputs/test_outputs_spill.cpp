@@ -225,3 +225,66 @@ TEST(KeyframeSpill, BadSpillDirStopsBeforeTheRun)
 	o.spill_to_disk = false;
 	EXPECT_NO_THROW(outputs::RunCollector c(o));
 }
+
+TEST(DenseMapSpill, TileBeyondItsHeightWindowKeepsEveryVoxelOnce)
+{
+	// A tile's table holds tile-local keys while its points lie within
+	// the tile's z window (20 m tiles of 5 cm voxels: 1342 m of z around
+	// the first point); a point beyond it rebuilds the table on global
+	// keys. Either way every voxel is kept once, before and after a spill.
+	outputs::DenseMap untiled(0.05), tiled(0.05, 20.0);
+	auto spill = std::make_shared<core::SpillFile>();
+	std::vector<Eigen::Vector3f> pts;
+	for (int k = 0; k < 300; k++)
+		pts.emplace_back(1.025f + 0.05f * (k % 10), 2.025f + 0.05f * (k / 10),
+		                 0.025f);
+	for (int k = 0; k < 200; k++)
+		pts.emplace_back(3.025f + 0.05f * (k % 10), 2.025f,
+		                 900.025f + 0.05f * k);
+	for (int k = 0; k < 200; k++)
+		pts.emplace_back(5.025f, 7.025f + 0.05f * k, -799.975f);
+	size_t kept = 0;
+	for (int pass = 0; pass < 2; pass++)
+	{
+		for (const auto& p : pts)
+		{
+			outputs::DensePoint d;
+			d.xyz = p;
+			const bool a = untiled.add(d);
+			EXPECT_EQ(a, tiled.add(d));
+			kept += a;
+			// The same voxel again (points at voxel centres), a fraction
+			// of a voxel aside.
+			d.xyz = p + Eigen::Vector3f(0.001f, 0.001f, 0.001f);
+			EXPECT_FALSE(tiled.add(d));
+		}
+		// Far away: the tile goes to disk, the next pass reads it back.
+		EXPECT_EQ(tiled.spillFar(Eigen::Vector2d(500, 500), 50, spill), 1u);
+	}
+	EXPECT_EQ(kept, 700u);
+	EXPECT_EQ(tiled.size(), 700u);
+	EXPECT_EQ(sorted(untiled.points()), sorted(tiled.points()));
+}
+
+TEST(DenseMapSpill, RevisitedTileCostsFourBytesASlot)
+{
+	// 100,000 voxels of one 20 m tile on disk, then one point into it:
+	// only its voxel table comes back (2^18 slots at 3 in 4 at most).
+	outputs::DenseMap m(0.05, 20.0);
+	auto spill = std::make_shared<core::SpillFile>();
+	for (int i = 0; i < 100000; i++)
+	{
+		outputs::DensePoint d;
+		d.xyz = {0.05f * (i % 300) + 0.01f, 0.05f * (i / 300 % 300) + 0.01f,
+		         0.05f * (i / 90000) + 0.01f};
+		ASSERT_TRUE(m.add(d));
+	}
+	ASSERT_EQ(m.spillFar(Eigen::Vector2d(500, 500), 50, spill), 1u);
+	EXPECT_LT(m.memoryBytes(), 4096u);
+	outputs::DensePoint d;
+	d.xyz = {19.9f, 19.9f, 3.0f};
+	ASSERT_TRUE(m.add(d));
+	EXPECT_EQ(m.tilesSpilled(), 0u);
+	EXPECT_GE(m.memoryBytes(), (size_t(1) << 18) * 4);
+	EXPECT_LT(m.memoryBytes(), (size_t(1) << 18) * 4 + 4096);
+}

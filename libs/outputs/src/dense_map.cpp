@@ -12,6 +12,7 @@ namespace forest_slam::outputs
 namespace
 {
 constexpr uint64_t kEmpty = ~uint64_t(0);
+constexpr uint32_t kEmpty32 = ~uint32_t(0);
 constexpr int64_t kHalf = int64_t(1) << 20;  // 21 bits per axis
 constexpr uint64_t kAxis = (uint64_t(1) << 21) - 1;
 constexpr size_t kFirstSlots = 1 << 8;  // small tiles stay small
@@ -80,6 +81,30 @@ DenseMap::DenseMap(double voxel_m, double tile_m)
 	// Tiles are whole voxels wide, so a voxel never straddles two tiles.
 	if (tile_m > 0)
 		tile_vox_ = std::max<int64_t>(1, std::llround(tile_m / voxel_m));
+	// Tile-local keys below kEmpty32: 20 m tiles of 5 cm voxels span 26843
+	// voxels (1.3 km) of z, far more than a tile's points ever do.
+	if (tile_vox_ > 0 && tile_vox_ <= 65535)
+		z_span_ = int64_t(kEmpty32) / (tile_vox_ * tile_vox_);
+	if (z_span_ < 2) z_span_ = 0;
+}
+
+bool DenseMap::localKey(const Tile& t, uint64_t key, uint32_t& local) const
+{
+	if (t.wide) return false;
+	const int64_t i = int64_t((key >> 42) & kAxis) - kHalf - t.tx * tile_vox_;
+	const int64_t j = int64_t((key >> 21) & kAxis) - kHalf - t.ty * tile_vox_;
+	const int64_t dz = int64_t(key & kAxis) - t.z0;
+	if (dz < 0 || dz >= z_span_) return false;
+	local = uint32_t((i * tile_vox_ + j) * z_span_ + dz);
+	return true;
+}
+
+uint64_t DenseMap::globalKey(const Tile& t, uint32_t local) const
+{
+	const int64_t dz = local % z_span_, ij = local / z_span_;
+	const int64_t i = ij / tile_vox_ + t.tx * tile_vox_ + kHalf,
+	              j = ij % tile_vox_ + t.ty * tile_vox_ + kHalf;
+	return (uint64_t(i) << 42) | (uint64_t(j) << 21) | uint64_t(t.z0 + dz);
 }
 
 uint64_t DenseMap::tileKeyOf(uint64_t key) const
@@ -110,7 +135,13 @@ DenseMap::Tile& DenseMap::tileFor(uint64_t key)
 	auto t = std::make_unique<Tile>();
 	t->tx = int32_t(uint32_t(tk >> 32));
 	t->ty = int32_t(uint32_t(tk));
-	t->keys.assign(kFirstSlots, kEmpty);
+	// The z window centred on the tile's first voxel.
+	t->z0 = int64_t(key & kAxis) - z_span_ / 2;
+	t->wide = z_span_ == 0;
+	if (t->wide)
+		t->wide_keys.assign(kFirstSlots, kEmpty);
+	else
+		t->keys.assign(kFirstSlots, kEmpty32);
 	t->mask = kFirstSlots - 1;
 	by_key_.emplace(tk, static_cast<uint32_t>(tiles_.size()));
 	tiles_.push_back(std::move(t));
@@ -125,7 +156,8 @@ size_t DenseMap::memoryBytes() const
 	size_t n = core::hashMapBytes(by_key_) + core::vectorBytes(tiles_);
 	for (const auto& t : tiles_)
 		n += sizeof(Tile) + core::vectorBytes(t->points) +
-		     core::vectorBytes(t->keys) + core::vectorBytes(t->chunks);
+		     core::vectorBytes(t->keys) + core::vectorBytes(t->wide_keys) +
+		     core::vectorBytes(t->chunks);
 	return n;
 }
 
@@ -164,14 +196,7 @@ DensePoint* DenseMap::claim(const Eigen::Vector3f& xyz)
 
 DensePoint* DenseMap::claimIn(Tile& t, uint64_t key, const Eigen::Vector3f& xyz)
 {
-	if (overLoad(t.count + 1, t.keys.size())) grow(t);
-	size_t slot = slotOf(key, t.mask);
-	while (t.keys[slot] != kEmpty)
-	{
-		if (t.keys[slot] == key) return nullptr;
-		slot = (slot + 1) & t.mask;
-	}
-	t.keys[slot] = key;
+	if (!insertKey(t, key)) return nullptr;
 	t.points.emplace_back();
 	t.points.back().xyz = xyz;
 	t.count++;
@@ -179,12 +204,48 @@ DensePoint* DenseMap::claimIn(Tile& t, uint64_t key, const Eigen::Vector3f& xyz)
 	return &t.points.back();
 }
 
+bool DenseMap::insertKey(Tile& t, uint64_t key) const
+{
+	// t.count is the tile's voxels before this one (the caller counts it).
+	if (overLoad(t.count + 1, t.mask + 1)) grow(t);
+	uint32_t local;
+	if (!t.wide && !localKey(t, key, local)) widen(t);
+	if (t.wide)
+	{
+		size_t slot = slotOf(key, t.mask);
+		while (t.wide_keys[slot] != kEmpty)
+		{
+			if (t.wide_keys[slot] == key) return false;
+			slot = (slot + 1) & t.mask;
+		}
+		t.wide_keys[slot] = key;
+		return true;
+	}
+	size_t slot = slotOf(local, t.mask);
+	while (t.keys[slot] != kEmpty32)
+	{
+		if (t.keys[slot] == local) return false;
+		slot = (slot + 1) & t.mask;
+	}
+	t.keys[slot] = local;
+	return true;
+}
+
+const void* DenseMap::slotAddress(const Tile& t, uint64_t key) const
+{
+	if (t.spilled) return nullptr;
+	if (t.wide) return &t.wide_keys[slotOf(key, t.mask)];
+	uint32_t local;
+	if (!localKey(t, key, local)) return nullptr;
+	return &t.keys[slotOf(local, t.mask)];
+}
+
 void DenseMap::prefetch(const Eigen::Vector3f& xyz) const
 {
 	uint64_t key;
 	if (moved_ || !xyz.allFinite() || !voxelKey(xyz, inv_voxel_, key)) return;
-	const Tile* t = findTile(key);
-	if (t && !t->spilled) __builtin_prefetch(&t->keys[slotOf(key, t->mask)]);
+	if (const Tile* t = findTile(key))
+		if (const void* slot = slotAddress(*t, key)) __builtin_prefetch(slot);
 }
 
 bool DenseMap::add(const DensePoint& p)
@@ -203,19 +264,49 @@ std::vector<DensePoint> DenseMap::points() const
 	return all;
 }
 
-void DenseMap::grow(Tile& t)
+namespace
 {
-	std::vector<uint64_t> old_keys(t.keys.size() * 2, kEmpty);
-	old_keys.swap(t.keys);
-	adviseHugePages(t.keys);
-	t.mask = t.keys.size() - 1;
-	for (size_t s = 0; s < old_keys.size(); s++)
+/** Moves the keys of `table` into a table twice as large (or of `slots`). */
+template <typename K>
+void rehashTable(std::vector<K>& table, size_t& mask, size_t slots, K empty)
+{
+	std::vector<K> old(slots, empty);
+	old.swap(table);
+	adviseHugePages(table);
+	mask = table.size() - 1;
+	for (const K k : old)
 	{
-		if (old_keys[s] == kEmpty) continue;
-		size_t slot = slotOf(old_keys[s], t.mask);
-		while (t.keys[slot] != kEmpty) slot = (slot + 1) & t.mask;
-		t.keys[slot] = old_keys[s];
+		if (k == empty) continue;
+		size_t slot = slotOf(k, mask);
+		while (table[slot] != empty) slot = (slot + 1) & mask;
+		table[slot] = k;
 	}
+}
+}  // namespace
+
+void DenseMap::grow(Tile& t) const
+{
+	if (t.wide)
+		rehashTable(t.wide_keys, t.mask, 2 * (t.mask + 1), kEmpty);
+	else
+		rehashTable(t.keys, t.mask, 2 * (t.mask + 1), kEmpty32);
+}
+
+void DenseMap::widen(Tile& t) const
+{
+	std::vector<uint64_t> wide(t.mask + 1, kEmpty);
+	adviseHugePages(wide);
+	for (const uint32_t k : t.keys)
+	{
+		if (k == kEmpty32) continue;
+		const uint64_t g = globalKey(t, k);
+		size_t slot = slotOf(g, t.mask);
+		while (wide[slot] != kEmpty) slot = (slot + 1) & t.mask;
+		wide[slot] = g;
+	}
+	std::vector<uint32_t>().swap(t.keys);
+	t.wide_keys.swap(wide);
+	t.wide = true;
 }
 
 size_t DenseMap::spillFar(const Eigen::Vector2d& centre, double radius_m,
@@ -243,7 +334,8 @@ size_t DenseMap::spillFar(const Eigen::Vector2d& centre, double radius_m,
 			t.chunks.push_back(
 			    {spill_->appendVector(t.points), t.points.size()});
 		std::vector<DensePoint>().swap(t.points);
-		std::vector<uint64_t>().swap(t.keys);
+		std::vector<uint32_t>().swap(t.keys);
+		std::vector<uint64_t>().swap(t.wide_keys);
 		t.mask = 0;
 		t.spilled = true;
 		moved++;
@@ -266,7 +358,8 @@ void DenseMap::transformPoints(const std::function<void(DensePoint&)>& move)
 		}
 		for (auto& p : t.points) move(p);
 		// The voxel table no longer matches the points.
-		std::vector<uint64_t>().swap(t.keys);
+		std::vector<uint32_t>().swap(t.keys);
+		std::vector<uint64_t>().swap(t.wide_keys);
 		t.mask = 0;
 	}
 	moved_ = true;
@@ -275,13 +368,24 @@ void DenseMap::transformPoints(const std::function<void(DensePoint&)>& move)
 
 void DenseMap::reload(Tile& t)
 {
-	// The table only: a revisit near the sensor costs 11-21 bytes per
+	// The table only: a revisit near the sensor costs 5-11 bytes per
 	// point of the tile, not the points themselves (20 bytes) as well.
 	size_t slots = kFirstSlots;
 	while (overLoad(t.count + 1, slots)) slots *= 2;
-	t.keys.assign(slots, kEmpty);
 	t.mask = slots - 1;
-	adviseHugePages(t.keys);
+	if (t.wide)
+	{
+		t.wide_keys.assign(slots, kEmpty);
+		adviseHugePages(t.wide_keys);
+	}
+	else
+	{
+		t.keys.assign(slots, kEmpty32);
+		adviseHugePages(t.keys);
+	}
+	// The table is sized for every point already: no growth on the way.
+	const size_t count = t.count;
+	t.count = 0;
 	std::vector<DensePoint> buf;
 	for (const auto& c : t.chunks)
 	{
@@ -290,11 +394,11 @@ void DenseMap::reload(Tile& t)
 		{
 			uint64_t key = 0;
 			voxelKey(p.xyz, inv_voxel_, key);
-			size_t slot = slotOf(key, t.mask);
-			while (t.keys[slot] != kEmpty) slot = (slot + 1) & t.mask;
-			t.keys[slot] = key;
+			insertKey(t, key);
+			t.count++;
 		}
 	}
+	t.count = count;
 	t.spilled = false;
 }
 

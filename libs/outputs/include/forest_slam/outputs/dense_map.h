@@ -8,7 +8,7 @@
 // the grid is split into square tiles (columns of tile_m × tile_m); tiles
 // farther from the sensor than any return can reach are moved to a spill
 // file (spillFar). When a point falls into a spilled tile again, only its
-// voxel table is rebuilt (8 bytes a slot): its points stay on disk and the
+// voxel table is rebuilt (4 bytes a slot): its points stay on disk and the
 // new ones are kept in memory until the tile is spilled again, as one more
 // chunk after the others. The kept points, and their order, are the same
 // as with everything in memory.
@@ -115,16 +115,26 @@ class DenseMap
 		std::vector<Chunk> chunks;  ///< on disk: the tile's first points
 		std::vector<DensePoint> points;  ///< in memory: the points after
 		size_t count = 0;                ///< chunks + points
-		// Open addressing (linear probing) on packed voxel keys: no
-		// allocation per voxel; lookups miss the CPU cache, so callers
-		// prefetch() a batch of points ahead of claiming them. A slot only
-		// says "voxel taken": a taken voxel's point is never looked up.
-		std::vector<uint64_t> keys;  ///< kEmpty or packed voxel key
+		// Open addressing (linear probing) on voxel keys: no allocation
+		// per voxel; lookups miss the CPU cache, so callers prefetch() a
+		// batch of points ahead of claiming them. A slot only says "voxel
+		// taken": a taken voxel's point is never looked up. The keys are
+		// the voxel's index within the tile (4 bytes: half the table of
+		// the global key) while the tile's points lie within z_span_
+		// voxels of z0; a tile with a point beyond is rebuilt on the global
+		// keys (`wide`, 8 bytes), as is the single tile of an untiled map.
+		std::vector<uint32_t> keys;       ///< kEmpty32 or tile-local key
+		std::vector<uint64_t> wide_keys;  ///< kEmpty or packed voxel key
 		size_t mask = 0;
+		bool wide = false;
+		int64_t z0 = 0;        ///< packed z index of tile-local z 0
 		bool spilled = false;  ///< no voxel table: every point on disk
 	};
 	double voxel_m_, inv_voxel_;
 	int64_t tile_vox_;  ///< voxels per tile edge; 0: one tile
+	/** Voxels of z a tile-local key spans (tile_vox_^2 * z_span_ < 2^32);
+	 * 0: tile-local keys do not fit, every tile is wide. */
+	int64_t z_span_ = 0;
 	double t0_ = 0;
 	size_t size_ = 0;
 	std::vector<std::unique_ptr<Tile>> tiles_;       ///< creation order
@@ -139,7 +149,17 @@ class DenseMap
 	/** Tile of a voxel key, nullptr if none. */
 	Tile* findTile(uint64_t voxel_key) const;
 	Tile& tileFor(uint64_t voxel_key);
-	static void grow(Tile& t);
+	void grow(Tile& t) const;
+	/** Tile-local key of a packed voxel key of tile t; false if the voxel
+	 * lies outside the tile's z window (or the tile is wide). */
+	bool localKey(const Tile& t, uint64_t key, uint32_t& local) const;
+	uint64_t globalKey(const Tile& t, uint32_t local) const;
+	/** Rebuilds t's table on global keys (a point beyond its z window). */
+	void widen(Tile& t) const;
+	/** Marks the voxel taken; false if it was taken already. */
+	bool insertKey(Tile& t, uint64_t key) const;
+	/** The slot to prefetch for `key`, nullptr if t has no table. */
+	const void* slotAddress(const Tile& t, uint64_t key) const;
 	/** Rebuilds the voxel table of a spilled tile from its chunks. */
 	void reload(Tile& t);
 	/** Every point of a tile, chunks then memory, into `out`. */
