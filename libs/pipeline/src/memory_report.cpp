@@ -58,7 +58,7 @@ std::string describeMemory(const MemorySample& s)
 	    "submaps %.0f MB (%.2f M voxels), tree layer %.0f MB (%.2f M "
 	    "voxels), local map %.0f MB, ground %.0f MB, back-end %.0f MB, "
 	    "trajectory %.0f MB; spilled to disk %.0f MB; malloc: %.0f MB in "
-	    "use, %.0f MB freed but held (%d arenas)",
+	    "use, %.0f MB free in its arenas (%d arenas)",
 	    s.rss_mb, s.dense_map_mb, s.dense_points / 1e6, s.keyframes_mb,
 	    s.forest_map_mb, s.map_voxels / 1e6, s.tree_layer_mb,
 	    s.stem_voxels / 1e6, s.local_map_mb, s.ground_mb, s.back_end_mb,

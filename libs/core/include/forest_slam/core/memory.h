@@ -18,8 +18,10 @@ double currentRssMb();
 /** What glibc's malloc holds now, over all its arenas (mallinfo2) [MB]:
  * `in_use` is handed out to the program (blocks of the heap and the
  * blocks mapped apart), `free` is freed but kept by malloc (free lists,
- * holes between used blocks, the top of each arena). Resident memory that
- * no container accounts for is mostly one of these two. */
+ * holes between used blocks, the top of each arena), resident or not:
+ * releaseFreedHeap() hands whole free pages back to the kernel and they
+ * still count here. Resident memory that no container accounts for is
+ * mostly one of these two. */
 struct HeapUse
 {
 	double in_use_mb = 0, free_mb = 0, mapped_mb = 0;

@@ -29,7 +29,9 @@ struct MemorySample
 	// glibc's malloc over all arenas (core::heapUse): what the RSS holds
 	// beyond the containers' estimates.
 	double heap_in_use_mb = 0;  ///< handed out (containers + all the rest)
-	double heap_free_mb = 0;    ///< freed, kept by malloc (fragmentation)
+	/** Freed, kept by malloc for reuse; resident or not (releaseFreedHeap
+	 * gives whole free pages back but they still count here). */
+	double heap_free_mb = 0;
 	int malloc_arenas = 0;
 	uint64_t dense_points = 0, stem_voxels = 0, map_voxels = 0;
 	double partsMb() const
