@@ -756,6 +756,16 @@ std::function<void(map::CForestMap&)> MappingPipeline::forestMapCorrection(
 	};
 }
 
+size_t MappingPipeline::correctionBytes() const
+{
+	size_t n = core::vectorBytes(anchors_) + core::vectorBytes(kf_pose_) +
+	           core::vectorBytes(map_merged_pose_) +
+	           core::vectorBytes(map_segment_first_scan_) +
+	           core::vectorBytes(tree_merge_poses_);
+	for (const auto& v : tree_merge_poses_) n += core::vectorBytes(v);
+	return n;
+}
+
 std::optional<outputs::GeoOptions> MappingPipeline::estimatedGeoreference()
     const
 {

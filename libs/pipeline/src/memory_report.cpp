@@ -43,9 +43,10 @@ MemorySample sampleMemory(const MappingPipeline& p)
 	s.heap_in_use_mb = heap.in_use_mb;
 	s.heap_free_mb = heap.free_mb;
 	s.malloc_arenas = heap.arenas;
-	s.trajectory_mb = toMb(
-	    core::vectorBytes(p.trajectory()) + core::vectorBytes(st.stage_ms) +
-	    core::vectorBytes(st.tree_ms) + core::vectorBytes(st.backend_ms));
+	s.trajectory_mb =
+	    toMb(core::vectorBytes(p.trajectory()) + p.correctionBytes() +
+	         core::vectorBytes(st.stage_ms) + core::vectorBytes(st.tree_ms) +
+	         core::vectorBytes(st.backend_ms));
 	return s;
 }
 

@@ -87,6 +87,11 @@ class MappingPipeline
 	/** Lidar pose per mapped scan at the scan's reference time (its first
 	 * firing), in the map frame. */
 	const core::Trajectory& trajectory() const { return trajectory_; }
+	/** Heap bytes of the back-end's per-scan bookkeeping: the scans'
+	 * anchors on their keyframes and the estimates kept for the in-run
+	 * merges of the CForestMap and the tree layer (estimate, main thread
+	 * only). */
+	size_t correctionBytes() const;
 	/** The map with every processed scan in it (waits for the odometry's
 	 * map inserter thread). */
 	const map::CForestMap& forestMap() const;

@@ -24,8 +24,10 @@ struct MemorySample
 	double local_map_mb = 0;   ///< odometry's local map (radius-pruned)
 	double ground_mb = 0;      ///< odometry's ground lattice
 	double back_end_mb = 0;    ///< loop back-end keyframe clouds
-	double trajectory_mb = 0;  ///< poses and per-scan timings
-	double spilled_mb = 0;     ///< bytes moved to the spill files on disk
+	/** Poses and per-scan timings, the back-end's per-scan bookkeeping
+	 * (MappingPipeline::correctionBytes). */
+	double trajectory_mb = 0;
+	double spilled_mb = 0;  ///< bytes moved to the spill files on disk
 	// glibc's malloc over all arenas (core::heapUse): what the RSS holds
 	// beyond the containers' estimates.
 	double heap_in_use_mb = 0;  ///< handed out (containers + all the rest)
