@@ -53,6 +53,20 @@ inline size_t slotOf(uint64_t key, size_t mask)
 	return mix(key) & mask;
 }
 
+/** Linear probing: puts `key` into `table`; false if it was there. */
+template <typename K>
+bool probeInsert(std::vector<K>& table, size_t mask, K key, K empty)
+{
+	size_t slot = slotOf(key, mask);
+	while (table[slot] != empty)
+	{
+		if (table[slot] == key) return false;
+		slot = (slot + 1) & mask;
+	}
+	table[slot] = key;
+	return true;
+}
+
 /** Packed voxel key (3 x 21 bits); false beyond 2^20 voxels of the origin. */
 inline bool voxelKey(const Eigen::Vector3f& xyz, double inv, uint64_t& key)
 {
@@ -208,27 +222,10 @@ bool DenseMap::insertKey(Tile& t, uint64_t key) const
 {
 	// t.count is the tile's voxels before this one (the caller counts it).
 	if (overLoad(t.count + 1, t.mask + 1)) grow(t);
-	uint32_t local;
+	uint32_t local = 0;
 	if (!t.wide && !localKey(t, key, local)) widen(t);
-	if (t.wide)
-	{
-		size_t slot = slotOf(key, t.mask);
-		while (t.wide_keys[slot] != kEmpty)
-		{
-			if (t.wide_keys[slot] == key) return false;
-			slot = (slot + 1) & t.mask;
-		}
-		t.wide_keys[slot] = key;
-		return true;
-	}
-	size_t slot = slotOf(local, t.mask);
-	while (t.keys[slot] != kEmpty32)
-	{
-		if (t.keys[slot] == local) return false;
-		slot = (slot + 1) & t.mask;
-	}
-	t.keys[slot] = local;
-	return true;
+	return t.wide ? probeInsert(t.wide_keys, t.mask, key, kEmpty)
+	              : probeInsert(t.keys, t.mask, local, kEmpty32);
 }
 
 const void* DenseMap::slotAddress(const Tile& t, uint64_t key) const
