@@ -374,7 +374,8 @@ MappingResult runMapping(const MappingJob& job, const MappingConfig& cfg,
 			const double mb = core::releaseFreedHeap();
 			FS_LOG_DEBUG("freed heap given back at "
 			             << next_trim_s << " s of data: " << mb << " MB");
-			next_trim_s += kTrimPeriodS;
+			// Once after a gap in the data, not once per period missed.
+			next_trim_s = pipeline.stats().dataSeconds() + kTrimPeriodS;
 		}
 		if (mem_period_s > 0 && pipeline.stats().dataSeconds() >= next_mem_s)
 		{
