@@ -185,7 +185,7 @@ void MappingPipeline::backEndScan(const PendingScan& s, core::StampedPose& pose)
 				{
 					const core::Trajectory now = currentEstimate(X, C);
 					mergeForestMapSegments(now);
-					mergeTreeLayerPasses(now);
+					mergeTreeLayerPasses(now, X, C);
 				}
 				// On the map worker, after the merge queued above (if one
 				// was): the segment starts after this scan's insertion.
@@ -408,7 +408,8 @@ core::Trajectory MappingPipeline::treeMapped(const core::Trajectory& as_mapped,
                                              uint32_t version) const
 {
 	if (version == 0) return as_mapped;
-	return withMerged(as_mapped, tree_merge_poses_.at(version - 1));
+	const auto& e = tree_merge_estimates_.at(version - 1);
+	return estimateOf(as_mapped, e.X, e.C, e.scans);
 }
 
 void MappingPipeline::correctTreeLayer(const core::Trajectory& as_mapped)
@@ -477,26 +478,22 @@ void MappingPipeline::correctDenseMap(const core::Trajectory& mapped)
 core::Trajectory MappingPipeline::currentEstimate(
     const loop::Poses& X, const Eigen::Isometry3d& C) const
 {
-	// Scans anchored to an optimised keyframe follow it (as at the end of
-	// the run), the later ones move with C.
-	core::Trajectory now = trajectory_;
-	for (size_t i = 0; i < now.size(); i++)
-		now[i].pose = anchors_[i].keyframe < X.size()
-		                  ? X[anchors_[i].keyframe] * anchors_[i].offset
-		                  : C * trajectory_[i].pose;
-	return now;
+	return estimateOf(trajectory_, X, C, trajectory_.size());
 }
 
-core::Trajectory MappingPipeline::withMerged(
-    const core::Trajectory& mapped,
-    const std::vector<Eigen::Isometry3d,
-                      Eigen::aligned_allocator<Eigen::Isometry3d>>& merged)
-    const
+core::Trajectory MappingPipeline::estimateOf(const core::Trajectory& mapped,
+                                             const loop::Poses& X,
+                                             const Eigen::Isometry3d& C,
+                                             size_t scans) const
 {
-	core::Trajectory out = mapped;
-	for (size_t i = 0; i < merged.size() && i < out.size(); i++)
-		out[i].pose = merged[i];
-	return out;
+	// Scans anchored to an optimised keyframe follow it (as at the end of
+	// the run), the later ones move with C.
+	core::Trajectory now = mapped;
+	for (size_t i = 0; i < scans && i < now.size(); i++)
+		now[i].pose = anchors_[i].keyframe < X.size()
+		                  ? X[anchors_[i].keyframe] * anchors_[i].offset
+		                  : C * mapped[i].pose;
+	return now;
 }
 
 void MappingPipeline::stepTreeMerge(size_t max_voxels)
@@ -560,7 +557,9 @@ void MappingPipeline::completeTreeMerge()
 	tree_merge_.reset();  // the queued job holds it
 }
 
-void MappingPipeline::mergeTreeLayerPasses(const core::Trajectory& now)
+void MappingPipeline::mergeTreeLayerPasses(const core::Trajectory& now,
+                                           const loop::Poses& X,
+                                           const Eigen::Isometry3d& C)
 {
 	// The map worker is idle (flushed): its counts can be read.
 	if (!tree_layer_) return;
@@ -601,7 +600,7 @@ void MappingPipeline::mergeTreeLayerPasses(const core::Trajectory& now)
 	}
 	auto m = std::make_shared<TreeMerge>();
 	m->keys = keys;
-	m->version = uint32_t(tree_merge_poses_.size() + 1);
+	m->version = uint32_t(tree_merge_estimates_.size() + 1);
 	// Each column moves from where its own last merge put it.
 	for (const auto& k : keys.empty() ? tree_layer_->columns() : keys)
 	{
@@ -615,12 +614,10 @@ void MappingPipeline::mergeTreeLayerPasses(const core::Trajectory& now)
 	m->xy = scanPositions(trajectory_);
 	tree_merge_ = m;
 	stepTreeMerge(kTreeMergeStepVoxels);
-	tree_merge_poses_.emplace_back(now.size());
-	for (size_t i = 0; i < now.size(); i++)
-		tree_merge_poses_.back()[i] = now[i].pose;
+	tree_merge_estimates_.push_back({X, C, now.size()});
 	// The estimates no column is in any more (the merge's columns take the
-	// new one) are freed: a long run's are megabytes each.
-	std::vector<bool> used(tree_merge_poses_.size() + 1, false);
+	// new one) are freed.
+	std::vector<bool> used(tree_merge_estimates_.size() + 1, false);
 	used[m->version] = true;
 	for (const auto& k : tree_layer_->columns())
 	{
@@ -629,9 +626,7 @@ void MappingPipeline::mergeTreeLayerPasses(const core::Trajectory& now)
 		if (!moved) used[tree_layer_->mergeVersion(k)] = true;
 	}
 	for (size_t v = 1; v < used.size(); v++)
-		if (!used[v])
-			decltype(tree_merge_poses_)::value_type().swap(
-			    tree_merge_poses_[v - 1]);
+		if (!used[v]) tree_merge_estimates_[v - 1] = MergeEstimate();
 	// The count after the merge is known only on the worker: the next
 	// merge waits for half as many again as before this one.
 	tree_voxels_at_merge_ = voxels;
@@ -761,8 +756,8 @@ size_t MappingPipeline::correctionBytes() const
 	size_t n = core::vectorBytes(anchors_) + core::vectorBytes(kf_pose_) +
 	           core::vectorBytes(map_merged_pose_) +
 	           core::vectorBytes(map_segment_first_scan_) +
-	           core::vectorBytes(tree_merge_poses_);
-	for (const auto& v : tree_merge_poses_) n += core::vectorBytes(v);
+	           core::vectorBytes(tree_merge_estimates_);
+	for (const auto& e : tree_merge_estimates_) n += core::vectorBytes(e.X);
 	return n;
 }
 

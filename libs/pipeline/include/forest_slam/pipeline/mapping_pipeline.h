@@ -237,15 +237,27 @@ class MappingPipeline
 	 * read after a flush). */
 	size_t map_voxels_at_merge_ = 0;
 	size_t map_merges_ = 0;  ///< in-run merges so far
+	/** The back-end's estimate at an in-run merge of the tree layer, as
+	 * currentEstimate() made it: the keyframes' poses and the correction
+	 * of the scans after them. The scans' poses are made again from
+	 * anchors_ (which never change) when a correction needs them, bit for
+	 * bit: a pose per scan was kept before, 128 bytes a scan for every
+	 * merge still in use (64 MB at 2100 s of the 60-minute run); the
+	 * keyframes are one scan in ~9. */
+	struct MergeEstimate
+	{
+		loop::Poses X;  ///< keyframe poses (emptied once unused)
+		Eigen::Isometry3d C = Eigen::Isometry3d::Identity();
+		size_t scans = 0;  ///< scans mapped at the merge
+	};
 	/** The same for the tree layer's stem-band voxels, merged on their
 	 * own schedule (on the map worker) and column by column: the estimate
-	 * at each in-run merge (merge v: tree_merge_poses_[v - 1]; emptied once
-	 * no column is last moved by it). A column last moved by merge v holds
-	 * the voxels of the scans mapped before it where that estimate put
-	 * them (TreeLayer::mergeVersion). */
-	std::vector<std::vector<Eigen::Isometry3d,
-	                        Eigen::aligned_allocator<Eigen::Isometry3d>>>
-	    tree_merge_poses_;
+	 * at each in-run merge (merge v: tree_merge_estimates_[v - 1]; its
+	 * keyframes freed once no column is last moved by it). A column last
+	 * moved by merge v holds the voxels of the scans mapped before it
+	 * where that estimate put them (TreeLayer::mergeVersion). */
+	std::vector<MergeEstimate, Eigen::aligned_allocator<MergeEstimate>>
+	    tree_merge_estimates_;
 	size_t tree_voxels_at_merge_ = 0;
 	size_t tree_merges_ = 0;
 	/** The scans in the frame of the tree layer's columns last moved by
@@ -266,12 +278,11 @@ class MappingPipeline
 	 * correction `C` with keyframe estimate `X`. */
 	core::Trajectory currentEstimate(const loop::Poses& X,
 	                                 const Eigen::Isometry3d& C) const;
-	/** trajectory_ with its first poses replaced by `merged`. */
-	core::Trajectory withMerged(
-	    const core::Trajectory& mapped,
-	    const std::vector<Eigen::Isometry3d,
-	                      Eigen::aligned_allocator<Eigen::Isometry3d>>& merged)
-	    const;
+	/** `mapped` (the scans as mapped) with its first `scans` poses
+	 * replaced by the estimate (X, C), as currentEstimate() made it then. */
+	core::Trajectory estimateOf(const core::Trajectory& mapped,
+	                            const loop::Poses& X,
+	                            const Eigen::Isometry3d& C, size_t scans) const;
 	void initBackEnd();
 	/** The dense map and the CForestMap follow the corrections: `mapped`
 	 * is the trajectory as the scans were mapped. */
@@ -292,7 +303,8 @@ class MappingPipeline
 	void mergeForestMapSegments(const core::Trajectory& now);
 	/** Likewise the tree layer's passes (a job on the map worker) when
 	 * the layer holds half as many stem voxels again as after the last. */
-	void mergeTreeLayerPasses(const core::Trajectory& now);
+	void mergeTreeLayerPasses(const core::Trajectory& now, const loop::Poses& X,
+	                          const Eigen::Isometry3d& C);
 	/** After the odometry posed scan `s`: may move `pose` (correction). */
 	void backEndScan(const PendingScan& s, core::StampedPose& pose);
 	void backEndGnss(const mrpt::obs::CObservation& obs);
