@@ -491,3 +491,56 @@ TEST(Registration, RealScanPairMatchesReference)
 	EXPECT_LT(e.first, 0.05);
 	EXPECT_LT(e.second, 0.2);
 }
+
+// The bounded nearest-point query the ICP uses: the same point and
+// distance as knn(q, 1) whenever that one is below the bound (ties
+// included: a grid has many equally near points), nothing otherwise.
+TEST(KdTree, NearestBelowMatchesTheUnboundedSearch)
+{
+	std::vector<Eigen::Vector3f> pts;
+	for (int x = 0; x < 20; x++)
+		for (int y = 0; y < 20; y++)
+			for (int z = 0; z < 5; z++)
+				pts.emplace_back(0.1f * x, 0.1f * y, 0.1f * z);
+	std::mt19937 rng(3);
+	std::uniform_real_distribution<float> u(-0.5f, 2.5f);
+	for (int i = 0; i < 200; i++) pts.emplace_back(u(rng), u(rng), u(rng));
+	odometry::KdTree tree;
+	tree.build(pts);
+	std::vector<uint32_t> idx;
+	std::vector<float> d2;
+	size_t found = 0, beyond = 0;
+	for (int i = 0; i < 3000; i++)
+	{
+		// Every fourth query on a grid node's midpoint: ties.
+		Eigen::Vector3f q(u(rng), u(rng), u(rng));
+		if (i % 4 == 0)
+			q = Eigen::Vector3f(0.05f + 0.1f * (i % 19), 0.1f * (i % 17),
+			                    0.05f);
+		ASSERT_EQ(tree.knn(q, 1, idx, d2), 1u);
+		for (float bound : {0.0001f, 0.01f, 0.04f, 1.0f})
+		{
+			uint32_t j = 0;
+			float dj = -1;
+			const bool hit = tree.nearestBelow(q, bound, j, dj);
+			EXPECT_EQ(hit, d2[0] < bound);
+			if (!hit) continue;
+			EXPECT_EQ(j, idx[0]);
+			EXPECT_EQ(dj, d2[0]);
+		}
+		// The ICP's bound: just above the distance to a point farther
+		// than the nearest.
+		const uint32_t other = uint32_t(i % tree.points().size());
+		const float to_other = (tree.points()[other] - q).squaredNorm();
+		uint32_t j = 0;
+		float dj = -1;
+		ASSERT_TRUE(tree.nearestBelow(q, 1.00001f * to_other + 1e-30f, j, dj));
+		EXPECT_EQ(j, idx[0]);
+		EXPECT_EQ(dj, d2[0]);
+		found += d2[0] < 0.01f;
+		beyond += d2[0] >= 0.01f;
+	}
+	// Both sides of the bounds were exercised.
+	EXPECT_GT(found, 300u);
+	EXPECT_GT(beyond, 300u);
+}

@@ -4,9 +4,20 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <cmath>
+#include <limits>
 
 namespace forest_slam::loop
 {
+namespace
+{
+/** The least float above d2: a search bound that still finds a point at
+ * exactly d2 (the gates keep a match at their distance). */
+float justAbove(float d2)
+{
+	return std::nextafter(d2, std::numeric_limits<float>::infinity());
+}
+}  // namespace
+
 IcpTarget::IcpTarget(NormalCloud cloud)
     : cloud_(std::move(cloud)), tree_(std::make_unique<odometry::KdTree>())
 {
@@ -24,21 +35,21 @@ IcpResult IcpTarget::evaluate(const std::vector<Eigen::Vector3f>& source,
 	if (source.empty() || cloud_.points.size() < 10) return res;
 	using Mat6 = Eigen::Matrix<double, 6, 6>;
 	using Vec6 = Eigen::Matrix<double, 6, 1>;
-	std::vector<uint32_t> idx;
-	std::vector<float> d2;
 	// Statistics at the final gate.
 	const float gate2 =
 	    static_cast<float>(o.final_distance_m * o.final_distance_m);
 	Mat6 H = Mat6::Zero();
 	double sse = 0;
 	size_t n = 0;
+	uint32_t j;
+	float d2;
 	for (const auto& ps : source)
 	{
 		const Eigen::Vector3d p = T * ps.cast<double>();
-		if (tree_->knn(p.cast<float>(), 1, idx, d2) == 0 || d2[0] > gate2)
+		if (!tree_->nearestBelow(p.cast<float>(), justAbove(gate2), j, d2))
 			continue;
-		const Eigen::Vector3d q = cloud_.points[idx[0]].cast<double>();
-		const Eigen::Vector3d nrm = cloud_.normals[idx[0]].cast<double>();
+		const Eigen::Vector3d q = cloud_.points[j].cast<double>();
+		const Eigen::Vector3d nrm = cloud_.normals[j].cast<double>();
 		const double r = nrm.dot(p - q);
 		if (std::abs(r) > 3 * o.kernel_m) continue;
 		Vec6 J;
@@ -68,8 +79,15 @@ IcpResult IcpTarget::align(const std::vector<Eigen::Vector3f>& source,
 	IcpResult res;
 	res.T = guess;
 	if (source.empty() || cloud_.points.size() < 10) return res;
-	std::vector<uint32_t> idx;
-	std::vector<float> d2;
+	// Each source point's match in the last iteration: the nearest point
+	// now is at most as far as it, a bound that prunes most of the k-d
+	// tree's branches (the same matches as an unbounded search; the
+	// back-end's k-d tree searches were ~8 % of the CPU of the 60-minute
+	// run).
+	constexpr uint32_t kNone = std::numeric_limits<uint32_t>::max();
+	std::vector<uint32_t> last(source.size(), kNone);
+	uint32_t j;
+	float d2;
 	const double c2 = o.kernel_m * o.kernel_m;
 	using Mat6 = Eigen::Matrix<double, 6, 6>;
 	using Vec6 = Eigen::Matrix<double, 6, 1>;
@@ -89,13 +107,20 @@ IcpResult IcpTarget::align(const std::vector<Eigen::Vector3f>& source,
 		Mat6 H = Mat6::Zero();
 		Vec6 g = Vec6::Zero();
 		size_t n = 0;
-		for (const auto& ps : source)
+		for (size_t s = 0; s < source.size(); s++)
 		{
-			const Eigen::Vector3d p = res.T * ps.cast<double>();
-			if (tree_->knn(p.cast<float>(), 1, idx, d2) == 0 || d2[0] > gate2)
-				continue;
-			const Eigen::Vector3d q = cloud_.points[idx[0]].cast<double>();
-			const Eigen::Vector3d nrm = cloud_.normals[idx[0]].cast<double>();
+			const Eigen::Vector3d p = res.T * source[s].cast<double>();
+			const Eigen::Vector3f pf = p.cast<float>();
+			float bound = justAbove(gate2);
+			if (last[s] != kNone)
+				bound = std::min(
+				    bound,
+				    justAbove(1.00001f *
+				              (cloud_.points[last[s]] - pf).squaredNorm()));
+			if (!tree_->nearestBelow(pf, bound, j, d2)) continue;
+			last[s] = j;
+			const Eigen::Vector3d q = cloud_.points[j].cast<double>();
+			const Eigen::Vector3d nrm = cloud_.normals[j].cast<double>();
 			const double r = nrm.dot(p - q);
 			// Perturbation on the left: p' = exp(w) p + v.
 			Vec6 J;

@@ -17,6 +17,22 @@ struct CloudAdaptor
 		return false;
 	}
 };
+/** One nearest point below a bound, replaced only by a strictly nearer
+ * one (as nanoflann's KNNResultSet with k = 1). */
+struct NearestBelowResult
+{
+	float best;
+	uint32_t index = 0;
+	bool found = false;
+	bool full() const { return found; }
+	bool addPoint(float dist, uint32_t i)
+	{
+		if (dist < best) best = dist, index = i, found = true;
+		return true;
+	}
+	float worstDist() const { return best; }
+};
+
 using Index = nanoflann::KDTreeSingleIndexAdaptor<
     nanoflann::L2_Simple_Adaptor<float, CloudAdaptor>, CloudAdaptor, 3,
     uint32_t>;
@@ -62,6 +78,18 @@ size_t KdTree::knn(const Eigen::Vector3f& q, size_t k,
 	idx.resize(n);
 	d2.resize(n);
 	return n;
+}
+
+bool KdTree::nearestBelow(const Eigen::Vector3f& q, float bound_d2,
+                          uint32_t& idx, float& d2) const
+{
+	if (pts_.empty()) return false;
+	NearestBelowResult r{bound_d2};
+	impl_->index->findNeighbors(r, q.data(), nanoflann::SearchParams());
+	if (!r.found) return false;
+	idx = r.index;
+	d2 = r.best;
+	return true;
 }
 
 }  // namespace forest_slam::odometry
