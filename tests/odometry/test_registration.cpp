@@ -492,10 +492,11 @@ TEST(Registration, RealScanPairMatchesReference)
 	EXPECT_LT(e.second, 0.2);
 }
 
-// The bounded nearest-point query the ICP uses: the same point and
-// distance as knn(q, 1) whenever that one is below the bound (ties
-// included: a grid has many equally near points), nothing otherwise.
-TEST(KdTree, NearestBelowMatchesTheUnboundedSearch)
+// The bounded queries the back-end uses (nearest point for the ICP, k
+// nearest for the normals): the same points and distances as knn()
+// whenever they are below the bound (ties included: a grid has many
+// equally near points), nothing beyond it.
+TEST(KdTree, BoundedSearchesMatchTheUnboundedOne)
 {
 	std::vector<Eigen::Vector3f> pts;
 	for (int x = 0; x < 20; x++)
@@ -527,6 +528,22 @@ TEST(KdTree, NearestBelowMatchesTheUnboundedSearch)
 			if (!hit) continue;
 			EXPECT_EQ(j, idx[0]);
 			EXPECT_EQ(dj, d2[0]);
+		}
+		// k nearest below a bound: the unbounded list's points below it.
+		std::vector<uint32_t> idx5, below_idx;
+		std::vector<float> d5, below_d2;
+		ASSERT_EQ(tree.knn(q, 5, idx5, d5), 5u);
+		for (float bound : {0.0001f, 0.01f, 0.04f, 1.0f})
+		{
+			const size_t n = tree.knnBelow(q, 5, bound, below_idx, below_d2);
+			const size_t expected = size_t(std::count_if(
+			    d5.begin(), d5.end(), [&](float d) { return d < bound; }));
+			ASSERT_EQ(n, expected);
+			for (size_t m = 0; m < n; m++)
+			{
+				EXPECT_EQ(below_idx[m], idx5[m]);
+				EXPECT_EQ(below_d2[m], d5[m]);
+			}
 		}
 		// The ICP's bound: just above the distance to a point farther
 		// than the nearest.

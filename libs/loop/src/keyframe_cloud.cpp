@@ -5,6 +5,7 @@
 #include <Eigen/Eigenvalues>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <unordered_map>
 
 namespace forest_slam::loop
@@ -56,6 +57,8 @@ NormalCloud withNormals(const std::vector<Eigen::Vector3f>& pts, int k,
                         double max_flatness)
 {
 	NormalCloud out;
+	const float kSparseBound =
+	    std::nextafter(1.5f * 1.5f, std::numeric_limits<float>::infinity());
 	odometry::KdTree tree;
 	tree.build(pts);
 	std::vector<uint32_t> idx;
@@ -63,10 +66,11 @@ NormalCloud withNormals(const std::vector<Eigen::Vector3f>& pts, int k,
 	const auto& P = tree.points();
 	for (const auto& p : P)
 	{
-		if (tree.knn(p, static_cast<size_t>(k), idx, d2) <
+		// Sparse (the k-th neighbour beyond 1.5 m): no local plane. The
+		// bound (just above, a neighbour at 1.5 m is kept) prunes the search.
+		if (tree.knnBelow(p, static_cast<size_t>(k), kSparseBound, idx, d2) <
 		    static_cast<size_t>(k))
 			continue;
-		if (d2.back() > 1.5f * 1.5f) continue;  // sparse: no local plane
 		Eigen::Vector3d mean = Eigen::Vector3d::Zero();
 		for (auto i : idx) mean += P[i].cast<double>();
 		mean /= idx.size();

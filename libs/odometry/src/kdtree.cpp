@@ -80,6 +80,31 @@ size_t KdTree::knn(const Eigen::Vector3f& q, size_t k,
 	return n;
 }
 
+size_t KdTree::knnBelow(const Eigen::Vector3f& q, size_t k, float bound_d2,
+                        std::vector<uint32_t>& idx,
+                        std::vector<float>& d2) const
+{
+	if (pts_.empty() || k == 0)
+	{
+		idx.clear();
+		d2.clear();
+		return 0;
+	}
+	k = std::min(k, pts_.size());
+	idx.resize(k);
+	d2.resize(k);
+	// nanoflann's k-NN set, its k-th distance (the pruning bound until k
+	// points are in) started at the bound instead of the largest float.
+	nanoflann::KNNResultSet<float, uint32_t> r(k);
+	r.init(idx.data(), d2.data());
+	d2[k - 1] = bound_d2;
+	impl_->index->findNeighbors(r, q.data(), nanoflann::SearchParams());
+	const size_t n = r.size();
+	idx.resize(n);
+	d2.resize(n);
+	return n;
+}
+
 bool KdTree::nearestBelow(const Eigen::Vector3f& q, float bound_d2,
                           uint32_t& idx, float& d2) const
 {

@@ -28,6 +28,11 @@ class KdTree
 	 * branches it skips hold no point nearer than it, which is what makes
 	 * an ICP's queries cheaper (its gate, or the distance to last
 	 * iteration's match, which is at least the nearest's). */
+	/** knn(q, k) restricted to the points below `bound_d2`: the same
+	 * neighbours and distances when the k-th of them is below the bound
+	 * (fewer otherwise), found without visiting the branches beyond it. */
+	size_t knnBelow(const Eigen::Vector3f& q, size_t k, float bound_d2,
+	                std::vector<uint32_t>& idx, std::vector<float>& d2) const;
 	bool nearestBelow(const Eigen::Vector3f& q, float bound_d2, uint32_t& idx,
 	                  float& d2) const;
 
