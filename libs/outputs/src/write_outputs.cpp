@@ -17,6 +17,7 @@
 
 #include <chrono>
 #include <cstdio>
+#include <future>
 #include <limits>
 #include <map>
 #include <memory>
@@ -148,32 +149,55 @@ OutputSummary writeRunOutputs(const OutputInputs& in, const std::string& dir)
 		io::writeKitti(dir + "/trajectory.kitti", in.trajectory);
 		add("trajectory.kitti", t);
 	}
+	// The OctoMap (ray casting, then the tree's updates in keyframe order:
+	// the longest writer, 16-19 s of the forest-sim runs with one core
+	// busy) is written on its own thread while the writers below go on:
+	// they all only read the collector, the map and the trajectory.
+	std::future<void> octomap;
+	std::vector<WrittenFile> octomap_files;
+	if (o.octomap_bt || o.octomap_ot)
+		octomap = std::async(
+		    std::launch::async,
+		    [&, t0 = std::chrono::steady_clock::now()]
+		    {
+			    const std::string bt = dir + "/map.bt";
+			    const auto s =
+			        writeOctomap(col.keyframes(), cloud_of,
+			                     o.octomap_resolution_m, o.octomap_max_range_m,
+			                     bt, o.octomap_ot ? dir + "/map.ot" : "",
+			                     o.octomap_keyframe_spacing_m);
+			    FS_LOG_INFO(
+			        "OctoMap: "
+			        << s.keyframes << " keyframes (" << s.keyframes_skipped
+			        << " skipped: within octomap_keyframe_spacing_m"
+			           " of one cast), "
+			        << s.rays << " rays, " << s.occupied_leaves
+			        << " occupied / " << s.free_leaves << " free leaves");
+			    const auto listed = [&](const std::string& name)
+			    {
+				    octomap_files.push_back(
+				        {dir + "/" + name, describeOutput(name)});
+				    FS_LOG_INFO("wrote "
+				                << name << " in " << secondsSince(t0)
+				                << " s (beside the other writers); peak RSS "
+				                   "so far "
+				                << core::peakRssMb() << " MB");
+			    };
+			    if (o.octomap_bt)
+				    listed("map.bt");
+			    else
+				    std::remove(bt.c_str());
+			    if (o.octomap_ot) listed("map.ot");
+		    });
 	if (o.keyframes_simplemap)
 	{
 		t = std::chrono::steady_clock::now();
 		writeSimpleMap(dir + "/keyframes.simplemap", col.keyframes(), cloud_of);
 		add("keyframes.simplemap", t);
 	}
-	if (o.octomap_bt || o.octomap_ot)
-	{
-		t = std::chrono::steady_clock::now();
-		const std::string bt = dir + "/map.bt";
-		const auto s = writeOctomap(
-		    col.keyframes(), cloud_of, o.octomap_resolution_m,
-		    o.octomap_max_range_m, bt, o.octomap_ot ? dir + "/map.ot" : "",
-		    o.octomap_keyframe_spacing_m);
-		FS_LOG_INFO("OctoMap: "
-		            << s.keyframes << " keyframes (" << s.keyframes_skipped
-		            << " skipped: within octomap_keyframe_spacing_m"
-		               " of one cast), "
-		            << s.rays << " rays, " << s.occupied_leaves
-		            << " occupied / " << s.free_leaves << " free leaves");
-		if (o.octomap_bt)
-			add("map.bt", t);
-		else
-			std::remove(bt.c_str());
-		if (o.octomap_ot) add("map.ot", t);
-	}
+	// The OctoMap's files are listed where they were before it had its
+	// own thread: after the trajectory and the keyframes.
+	const size_t octomap_files_at = sum.files.size();
 
 	// Terrain and trees of the dense map. The dense map may be mostly on
 	// disk (spill_to_disk): it is read tile by tile, twice at most (bounds,
@@ -299,6 +323,12 @@ OutputSummary writeRunOutputs(const OutputInputs& in, const std::string& dir)
 			pcd->commit();
 			add("map.pcd", t);
 		}
+	}
+	if (octomap.valid())
+	{
+		octomap.get();  // rethrows its error
+		sum.files.insert(sum.files.begin() + octomap_files_at,
+		                 octomap_files.begin(), octomap_files.end());
 	}
 	const ElevationGrid dtm = dtm_cells.grid();
 	if (o.trees_csv)
