@@ -149,45 +149,61 @@ inline octomap::OcTreeKey fromMorton(uint64_t m)
 	    static_cast<octomap::key_type>(compactBits(m)));
 }
 
-/** tree.updateNode(k, occupied, lazy_eval = true) for every key, in tree
- * order: the path of the previous key is kept and only the levels below
- * the first child index that differs are descended (16 levels from the
- * root per key was most of the updates' time). Same nodes, same log-odds:
- * with lazy evaluation nothing is pruned, so no node has to be expanded,
- * and updateNodeLogOdds clamps as updateNode's early exit skips. */
-void updateInTreeOrder(octomap::OcTree& tree,
-                       const std::vector<octomap::OcTreeKey>& keys,
-                       bool occupied)
+/** octomap's child index (computeChildIdx: x bit 0, y bit 1, z bit 2) at
+ * tree level d (0: the root's children) of a key given by its Morton code
+ * (x, y, z bits of level b at code bits 3b + 2, 3b + 1, 3b). */
+inline unsigned childIdx(uint64_t code, unsigned depth, unsigned d)
 {
-	if (keys.empty()) return;
+	const unsigned t = unsigned(code >> (3 * (depth - 1 - d))) & 7u;
+	return ((t >> 2) & 1u) | (t & 2u) | ((t & 1u) << 2);
+}
+
+/** tree.updateNode(k, occupied, lazy_eval = true) for every key (sorted
+ * Morton codes), in tree order: the path of the previous key is kept and
+ * only the levels below the first child index that differs are descended
+ * (16 levels from the root per key was most of the updates' time); that
+ * level is the codes' common prefix (leading zeros of their xor) in
+ * three-bit steps. Same nodes, same log-odds: with lazy evaluation
+ * nothing is pruned, so no node has to be expanded, and updateNodeLogOdds
+ * clamps as updateNode's early exit skips. */
+void updateInTreeOrder(octomap::OcTree& tree,
+                       const std::vector<uint64_t>& codes, bool occupied)
+{
+	if (codes.empty()) return;
 	size_t first = 0;
-	if (!tree.getRoot()) tree.updateNode(keys[first++], occupied, true);
+	if (!tree.getRoot())
+		tree.updateNode(fromMorton(codes[first++]), occupied, true);
 	const float update =
 	    occupied ? tree.getProbHitLog() : tree.getProbMissLog();
 	const unsigned depth = tree.getTreeDepth();
 	std::vector<octomap::OcTreeNode*> path(depth + 1, nullptr);
 	path[0] = tree.getRoot();
 	unsigned valid = 0;  // path[0..valid] lie on the previous key's path
-	const octomap::OcTreeKey* prev = nullptr;
-	for (size_t i = first; i < keys.size(); i++)
+	uint64_t prev = 0;
+	for (size_t i = first; i < codes.size(); i++)
 	{
-		const octomap::OcTreeKey& k = keys[i];
+		const uint64_t c = codes[i];
 		unsigned d = 0;
-		if (prev)
-			while (d < valid &&
-			       octomap::computeChildIdx(k, depth - 1 - d) ==
-			           octomap::computeChildIdx(*prev, depth - 1 - d))
-				d++;
+		if (valid > 0)
+		{
+			// Levels whose 3 bits agree, from the top of the 3 * depth
+			// bits (equal codes: all of them).
+			const uint64_t x = c ^ prev;
+			const unsigned same =
+			    x == 0 ? depth
+			           : (unsigned(__builtin_clzll(x)) - (64 - 3 * depth)) / 3;
+			d = std::min(valid, same);
+		}
 		for (; d < depth; d++)
 		{
-			const unsigned pos = octomap::computeChildIdx(k, depth - 1 - d);
+			const unsigned pos = childIdx(c, depth, d);
 			path[d + 1] = tree.nodeChildExists(path[d], pos)
 			                  ? tree.getNodeChild(path[d], pos)
 			                  : tree.createNodeChild(path[d], pos);
 		}
 		valid = depth;
 		tree.updateNodeLogOdds(path[depth], update);
-		prev = &k;
+		prev = c;
 	}
 }
 
@@ -234,6 +250,22 @@ void DiscreteRayCaster::cast(const octomap::Pointcloud& cloud,
                              const octomap::point3d& origin, double max_range_m,
                              std::vector<octomap::OcTreeKey>& free,
                              std::vector<octomap::OcTreeKey>& occupied)
+{
+	std::vector<uint64_t> free_codes, occupied_codes;
+	castCodes(cloud, origin, max_range_m, free_codes, occupied_codes);
+	free.clear();
+	occupied.clear();
+	free.reserve(free_codes.size());
+	occupied.reserve(occupied_codes.size());
+	for (uint64_t c : free_codes) free.push_back(fromMorton(c));
+	for (uint64_t c : occupied_codes) occupied.push_back(fromMorton(c));
+}
+
+void DiscreteRayCaster::castCodes(const octomap::Pointcloud& cloud,
+                                  const octomap::point3d& origin,
+                                  double max_range_m,
+                                  std::vector<uint64_t>& free,
+                                  std::vector<uint64_t>& occupied)
 {
 	Impl& m = *impl_;
 	m.ends.clearKeepingCapacity();
@@ -287,17 +319,14 @@ void DiscreteRayCaster::cast(const octomap::Pointcloud& cloud,
 		codes->erase(std::unique(codes->begin(), codes->end()), codes->end());
 	}
 	free.clear();
-	occupied.clear();
 	free.reserve(m.free_codes.size());
-	occupied.reserve(m.occupied_codes.size());
 	auto occ = m.occupied_codes.begin();
 	for (uint64_t c : m.free_codes)
 	{
 		while (occ != m.occupied_codes.end() && *occ < c) ++occ;
-		if (occ == m.occupied_codes.end() || *occ != c)
-			free.push_back(fromMorton(c));
+		if (occ == m.occupied_codes.end() || *occ != c) free.push_back(c);
 	}
-	for (uint64_t c : m.occupied_codes) occupied.push_back(fromMorton(c));
+	occupied = m.occupied_codes;
 }
 
 OctomapSummary writeOctomap(const Keyframes& keyframes,
@@ -322,7 +351,7 @@ OctomapSummary writeOctomap(const Keyframes& keyframes,
 	// lazy_eval) in keyframe order: the same file.
 	struct Rays
 	{
-		std::vector<octomap::OcTreeKey> free, occupied;  ///< in tree order
+		std::vector<uint64_t> free, occupied;  ///< Morton codes, tree order
 		size_t points = 0;
 	};
 	constexpr size_t kCasters = 2;
@@ -346,8 +375,8 @@ OctomapSummary writeOctomap(const Keyframes& keyframes,
 		r.points = pts.size();
 		// discretize: one ray per end voxel (several points in one voxel
 		// would cast the same ray).
-		caster.cast(cloud, octomap::point3d(o.x(), o.y(), o.z()), max_range_m,
-		            r.free, r.occupied);
+		caster.castCodes(cloud, octomap::point3d(o.x(), o.y(), o.z()),
+		                 max_range_m, r.free, r.occupied);
 		return r;
 	};
 	// Keyframe j is cast on casters[j % kCasters]; its future is

@@ -7,6 +7,7 @@
 #include <octomap/OcTreeKey.h>
 #include <octomap/Pointcloud.h>
 
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
@@ -37,6 +38,12 @@ class DiscreteRayCaster
 	void cast(const octomap::Pointcloud& cloud, const octomap::point3d& origin,
 	          double max_range_m, std::vector<octomap::OcTreeKey>& free,
 	          std::vector<octomap::OcTreeKey>& occupied);
+	/** The same sets as the keys' Morton codes (most significant bit
+	 * first: x, y, z of the tree's top level), sorted. */
+	void castCodes(const octomap::Pointcloud& cloud,
+	               const octomap::point3d& origin, double max_range_m,
+	               std::vector<uint64_t>& free,
+	               std::vector<uint64_t>& occupied);
 
    private:
 	struct Impl;
