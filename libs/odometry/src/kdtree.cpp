@@ -2,6 +2,8 @@
 
 #include <nanoflann.hpp>
 
+#include <limits>
+
 namespace forest_slam::odometry
 {
 namespace
@@ -64,20 +66,8 @@ void KdTree::build(const std::vector<Eigen::Vector3f>& pts)
 size_t KdTree::knn(const Eigen::Vector3f& q, size_t k,
                    std::vector<uint32_t>& idx, std::vector<float>& d2) const
 {
-	if (pts_.empty() || k == 0)
-	{
-		idx.clear();
-		d2.clear();
-		return 0;
-	}
-	k = std::min(k, pts_.size());
-	idx.resize(k);
-	d2.resize(k);
-	const size_t n =
-	    impl_->index->knnSearch(q.data(), k, idx.data(), d2.data());
-	idx.resize(n);
-	d2.resize(n);
-	return n;
+	// nanoflann's knnSearch: the k-th distance starts at the largest float.
+	return knnBelow(q, k, std::numeric_limits<float>::max(), idx, d2);
 }
 
 size_t KdTree::knnBelow(const Eigen::Vector3f& q, size_t k, float bound_d2,
