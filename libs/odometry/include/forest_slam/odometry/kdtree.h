@@ -22,17 +22,17 @@ class KdTree
 	 * nearest first. */
 	size_t knn(const Eigen::Vector3f& q, size_t k, std::vector<uint32_t>& idx,
 	           std::vector<float>& d2) const;
+	/** knn(q, k) restricted to the points below `bound_d2`: the same
+	 * neighbours and distances when the k-th of them is below the bound
+	 * (fewer otherwise), found without visiting the branches beyond it. */
+	size_t knnBelow(const Eigen::Vector3f& q, size_t k, float bound_d2,
+	                std::vector<uint32_t>& idx, std::vector<float>& d2) const;
 	/** The nearest point if its squared distance is below `bound_d2`: its
 	 * index and squared distance, as knn(q, 1) gives them (the same point
 	 * among equally near ones). The bound only prunes the search: the
 	 * branches it skips hold no point nearer than it, which is what makes
 	 * an ICP's queries cheaper (its gate, or the distance to last
 	 * iteration's match, which is at least the nearest's). */
-	/** knn(q, k) restricted to the points below `bound_d2`: the same
-	 * neighbours and distances when the k-th of them is below the bound
-	 * (fewer otherwise), found without visiting the branches beyond it. */
-	size_t knnBelow(const Eigen::Vector3f& q, size_t k, float bound_d2,
-	                std::vector<uint32_t>& idx, std::vector<float>& d2) const;
 	bool nearestBelow(const Eigen::Vector3f& q, float bound_d2, uint32_t& idx,
 	                  float& d2) const;
 
