@@ -272,12 +272,7 @@ void rehashTable(std::vector<K>& table, size_t& mask, size_t slots, K empty)
 	adviseHugePages(table);
 	mask = table.size() - 1;
 	for (const K k : old)
-	{
-		if (k == empty) continue;
-		size_t slot = slotOf(k, mask);
-		while (table[slot] != empty) slot = (slot + 1) & mask;
-		table[slot] = k;
-	}
+		if (k != empty) probeInsert(table, mask, k, empty);
 }
 }  // namespace
 
@@ -294,13 +289,7 @@ void DenseMap::widen(Tile& t) const
 	std::vector<uint64_t> wide(t.mask + 1, kEmpty);
 	adviseHugePages(wide);
 	for (const uint32_t k : t.keys)
-	{
-		if (k == kEmpty32) continue;
-		const uint64_t g = globalKey(t, k);
-		size_t slot = slotOf(g, t.mask);
-		while (wide[slot] != kEmpty) slot = (slot + 1) & t.mask;
-		wide[slot] = g;
-	}
+		if (k != kEmpty32) probeInsert(wide, t.mask, globalKey(t, k), kEmpty);
 	std::vector<uint32_t>().swap(t.keys);
 	t.wide_keys.swap(wide);
 	t.wide = true;
