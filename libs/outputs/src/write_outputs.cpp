@@ -153,8 +153,10 @@ OutputSummary writeRunOutputs(const OutputInputs& in, const std::string& dir)
 	// the longest writer, 16-19 s of the forest-sim runs with one core
 	// busy) is written on its own thread while the writers below go on:
 	// they all only read the collector, the map and the trajectory.
-	std::future<void> octomap;
+	// (The list before the future: if a writer below throws, the future's
+	// destructor waits for the thread, which may still fill the list.)
 	std::vector<WrittenFile> octomap_files;
+	std::future<void> octomap;
 	if (o.octomap_bt || o.octomap_ot)
 		octomap = std::async(
 		    std::launch::async,
