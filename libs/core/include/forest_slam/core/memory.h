@@ -45,7 +45,10 @@ double threadCpuSeconds();
  * (/proc/self/task/<tid>/comm and stat; the workers are named fs-...),
  * in order of first appearance [s]. Empty if /proc is unreadable. */
 std::vector<std::pair<std::string, double>> threadCpuByName();
-/** Lowers the calling thread's priority (nice +5): for the workers whose
+/** The nice value of the background workers (runInBackground). */
+constexpr int kBackgroundNice = 19;
+/** Lowers the calling thread's priority to the lowest (nice
+ * kBackgroundNice): for the workers whose
  * results nobody waits for while their queues have room (the CForestMap's
  * insertion, the output collector, the back-end), so that when both cores
  * are wanted the odometry's threads, on which every scan waits, get them
