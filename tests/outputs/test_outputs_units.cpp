@@ -232,6 +232,42 @@ TEST(DenseMap, KeepsTheFirstPointOfEveryVoxel)
 	EXPECT_EQ(m.points().back().intensity, 7);
 }
 
+// Firing-order input: 16 rings, one column after another, 1 cm apart
+// along each ring, so most voxels are hit by several columns in a row, then
+// the same rings again after tens of thousands of other claims, across
+// 20 m tiles. Every add agrees with a set of the voxels seen.
+TEST(DenseMap, VoxelsHitInRunsAndRevisitedAreKeptOnce)
+{
+	outputs::DenseMap m(0.05, 20.0);
+	std::set<std::tuple<long, long, long>> voxels;
+	size_t adds = 0;
+	auto sweep = [&](float z0)
+	{
+		for (int col = 0; col < 3000; col++)
+			for (int ring = 0; ring < 16; ring++)
+			{
+				outputs::DensePoint p;
+				const float a = 0.01f * col / (3 + ring);  // radians
+				const float r = 3.0f + ring;
+				p.xyz = {r * std::cos(a), r * std::sin(a), z0 + 0.1f * ring};
+				const bool is_new = voxels
+				                        .emplace(std::floor(p.xyz.x() / 0.05),
+				                                 std::floor(p.xyz.y() / 0.05),
+				                                 std::floor(p.xyz.z() / 0.05))
+				                        .second;
+				ASSERT_EQ(m.add(p), is_new) << col << " " << ring;
+				adds++;
+			}
+	};
+	sweep(0.0f);
+	const size_t first = m.size();
+	EXPECT_LT(first, adds / 4);  // most adds hit a voxel taken just before
+	sweep(5.0f);                 // other voxels: evicts the recent ones
+	sweep(0.0f);                 // the first sweep's voxels, all taken
+	EXPECT_EQ(m.size(), voxels.size());
+	EXPECT_EQ(m.size(), 2 * first);
+}
+
 namespace
 {
 /** Scene for ray casting: ground z=0, stems (vertical cylinders r=0.2) and
