@@ -177,8 +177,15 @@ TEST(SerialWorker, BackgroundWorkerRunsAtALowerPriority)
 	    getpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)));
 	ASSERT_EQ(errno, 0);
 	EXPECT_EQ(niceOfWorker(false), mine);
+	namespace core = forest_slam::core;
+	ASSERT_EQ(core::backgroundNice(), core::kBackgroundNiceRecorded);
 	EXPECT_EQ(niceOfWorker(true),
-	          std::max(mine, forest_slam::core::kBackgroundNice));
+	          std::min(19, mine + core::kBackgroundNiceRecorded));
+	// Live input: a step below the creator only.
+	core::setBackgroundNice(core::kBackgroundNiceLive);
+	EXPECT_EQ(niceOfWorker(true),
+	          std::min(19, mine + core::kBackgroundNiceLive));
+	core::setBackgroundNice(core::kBackgroundNiceRecorded);
 	// The caller's own priority is left alone.
 	EXPECT_EQ(getpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid))),
 	          mine);

@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cerrno>
 #include <cstdio>
 #include <cstdlib>
@@ -77,6 +78,21 @@ double processCpuSeconds()
 	       1e-6 * (u.ru_utime.tv_usec + u.ru_stime.tv_usec);
 }
 
+namespace
+{
+std::atomic<int> g_background_nice{kBackgroundNiceRecorded};
+}  // namespace
+
+void setBackgroundNice(int increment)
+{
+	g_background_nice = std::clamp(increment, 0, 39);
+}
+
+int backgroundNice()
+{
+	return g_background_nice;
+}
+
 bool runInBackground()
 {
 	// Linux gives each thread its own nice value (PRIO_PROCESS with a
@@ -85,14 +101,16 @@ bool runInBackground()
 	errno = 0;
 	const int now = getpriority(PRIO_PROCESS, tid);
 	if (errno != 0) return false;
-	// The lowest priority (19), not a step below the caller (+5, before
-	// 2026-12-07): at +5 the scheduler still gave these workers a quarter
-	// of a core the odometry wanted; at 19 they run in the gaps the
-	// odometry's threads leave, and when their queues fill the odometry
-	// waits and they catch up (robot, first 3000 scans, three interleaved
-	// pairs: 65.4 -> 68.3 scans/s, the same CPU).
-	if (now >= kBackgroundNice) return true;
-	return setpriority(PRIO_PROCESS, tid, kBackgroundNice) == 0;
+	// Recorded input: the lowest priority (19), not a step below the
+	// caller (+5, before 2026-12-07). At +5 the scheduler still gave these
+	// workers a quarter of a core the odometry wanted; at 19 they run in
+	// the gaps the odometry's threads leave, and when their queues fill
+	// the odometry waits and they catch up (interleaved pairs: robot 3000
+	// scans 65.4 -> 68.3 scans/s, handheld 2000 scans 52.5 -> 59.0, the
+	// same CPU; doc/performance.md).
+	const int target = std::min(19, now + backgroundNice());
+	if (target <= now) return true;
+	return setpriority(PRIO_PROCESS, tid, target) == 0;
 }
 
 std::vector<std::pair<std::string, double>> threadCpuByName()

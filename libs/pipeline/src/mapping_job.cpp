@@ -323,6 +323,10 @@ MappingResult runMapping(const MappingJob& job, const MappingConfig& cfg,
 		            << (run_cfg.trees.layer_detect_during_run == "true"
 		                    ? "during the run"
 		                    : "once, at the end of the run"));
+	// The workers nobody waits for: at the lowest priority for a recorded
+	// rawlog, a step below for live input (core/memory.h).
+	core::setBackgroundNice(source.live() ? core::kBackgroundNiceLive
+	                                      : core::kBackgroundNiceRecorded);
 	MappingPipeline pipeline(run_cfg, poses);
 
 	MappingResult result;

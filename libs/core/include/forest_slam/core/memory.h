@@ -45,14 +45,22 @@ double threadCpuSeconds();
  * (/proc/self/task/<tid>/comm and stat; the workers are named fs-...),
  * in order of first appearance [s]. Empty if /proc is unreadable. */
 std::vector<std::pair<std::string, double>> threadCpuByName();
-/** The nice value of the background workers (runInBackground). */
-constexpr int kBackgroundNice = 19;
-/** Lowers the calling thread's priority to the lowest (nice
- * kBackgroundNice): for the workers whose
- * results nobody waits for while their queues have room (the CForestMap's
- * insertion, the output collector, the back-end), so that when both cores
- * are wanted the odometry's threads, on which every scan waits, get them
- * first. Returns false if the system refused (then nothing changed). */
+/** How far runInBackground lowers a worker's priority (nice increment,
+ * capped at 19): to the lowest for recorded input, where nothing else
+ * needs the cores and the odometry's threads should have them; by 5 for
+ * live input, where other programs on the robot's computer share the
+ * cores and a starved worker would hold the scans back. */
+constexpr int kBackgroundNiceRecorded = 19, kBackgroundNiceLive = 5;
+/** Sets the increment for the workers started from now on (default
+ * kBackgroundNiceRecorded). */
+void setBackgroundNice(int increment);
+int backgroundNice();
+/** Lowers the calling thread's priority by backgroundNice() (at most to
+ * nice 19): for the workers whose results nobody waits for while their
+ * queues have room (the CForestMap's insertion, the output collector, the
+ * back-end), so that when both cores are wanted the odometry's threads,
+ * on which every scan waits, get them first. Returns false if the system
+ * refused (then nothing changed). */
 bool runInBackground();
 
 /** Whether glibc's malloc of this process advises transparent huge pages
