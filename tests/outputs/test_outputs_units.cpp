@@ -262,7 +262,7 @@ TEST(DenseMap, VoxelsHitInRunsAndRevisitedAreKeptOnce)
 	sweep(0.0f);
 	const size_t first = m.size();
 	EXPECT_LT(first, adds / 4);  // most adds hit a voxel taken just before
-	sweep(5.0f);                 // other voxels: evicts the recent ones
+	sweep(5.0f);                 // 48,000 claims of other voxels between
 	sweep(0.0f);                 // the first sweep's voxels, all taken
 	EXPECT_EQ(m.size(), voxels.size());
 	EXPECT_EQ(m.size(), 2 * first);
