@@ -9,6 +9,7 @@
 #include <mrpt/serialization/CArchive.h>
 
 #include <filesystem>
+#include <set>
 
 using namespace forest_slam;
 using map::CForestMap;
@@ -62,6 +63,75 @@ TEST(ForestMap, InsertionVoxelFilteringAndSubmaps)
 	EXPECT_FALSE(m.isEmpty());
 	m.clear();
 	EXPECT_TRUE(m.isEmpty());
+}
+
+TEST(ForestMap, BulkInsertionMatchesPointByPointInsertion)
+{
+	// insertFeatures computes the keys first and prefetches slots ahead:
+	// every voxel must end with the count and centroid that inserting the
+	// points one by one into a VoxelCloud gives, also across a submap
+	// border, over two scans, and with a sensor pose.
+	map::ForestMapOptions o;
+	o.submap_size_m = 20;
+	o.edge_voxel_m = 0.1;
+	o.planar_voxel_m = 0.2;
+	CForestMap m(o);
+	map::VoxelCloud edge_oracle(0.1f), planar_oracle(0.2f);
+	Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+	T.translate(Eigen::Vector3d(15.3, -2.1, 0.4));
+	T.rotate(Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()));
+	uint32_t state = 7;
+	auto uniform = [&state](float lo, float hi)
+	{
+		state = state * 1664525u + 1013904223u;
+		return lo + (hi - lo) * static_cast<float>(state >> 8) / 16777216.f;
+	};
+	size_t planar_points = 0;
+	for (int scan = 0; scan < 2; scan++)
+	{
+		std::vector<Eigen::Vector3f> edge, planar;
+		for (int i = 0; i < 3000; i++)  // ground across submap borders
+			planar.emplace_back(uniform(0, 9), uniform(-3, 3),
+			                    uniform(-0.6f, -0.5f));
+		for (int i = 0; i < 500; i++)  // a stem, many points per voxel
+			edge.emplace_back(uniform(3, 3.25f), uniform(1, 1.25f),
+			                  uniform(0, 2));
+		edge.emplace_back(NAN, 0, 0);  // dropped
+		m.insertFeatures(edge, planar, T);
+		const Eigen::Isometry3f Tf = T.cast<float>();
+		for (const auto& p : edge)
+			if (p.allFinite()) edge_oracle.insert(Tf * p);
+		for (const auto& p : planar) planar_oracle.insert(Tf * p);
+		planar_points += planar.size();
+	}
+	size_t planar_voxels = 0, edge_voxels = 0, counted = 0;
+	std::set<size_t> submaps_with_planar;
+	size_t n_submap = 0;
+	for (const auto& [key, sm] : m.submaps())
+	{
+		n_submap++;
+		if (!sm.planar.empty()) submaps_with_planar.insert(n_submap);
+		auto check = [&](const map::VoxelCloud& oracle, const map::VoxelKey& k,
+		                 const map::VoxelCloud::Accum& a, size_t& voxels)
+		{
+			const Eigen::Vector3f c = a.centroid();
+			Eigen::Vector3f oc;
+			ASSERT_TRUE(oracle.centroidAt(c, oc));
+			EXPECT_LT((c - oc).norm(), 1e-4f)
+			    << k.x << " " << k.y << " " << k.z;
+			voxels++;
+			counted += a.count;
+		};
+		sm.planar.forEachVoxel([&](const map::VoxelKey& k, const auto& a)
+		                       { check(planar_oracle, k, a, planar_voxels); });
+		sm.edge.forEachVoxel([&](const map::VoxelKey& k, const auto& a)
+		                     { check(edge_oracle, k, a, edge_voxels); });
+	}
+	EXPECT_EQ(planar_voxels, planar_oracle.size());
+	EXPECT_EQ(edge_voxels, edge_oracle.size());
+	EXPECT_EQ(counted, planar_points + 1000u);
+	EXPECT_EQ(submaps_with_planar.size(), 4u);  // ground across x = 20, y = 0
+	EXPECT_LT(edge_voxels, 200u);               // 500 points a scan, few voxels
 }
 
 TEST(ForestMap, NeighbourhoodQuery)
