@@ -228,10 +228,10 @@ TEST(KeyframeSpill, BadSpillDirStopsBeforeTheRun)
 
 TEST(DenseMapSpill, TileBeyondItsHeightWindowKeepsEveryVoxelOnce)
 {
-	// A tile's table holds tile-local keys while its points lie within
-	// the tile's z window (20 m tiles of 5 cm voxels: 1342 m of z around
-	// the first point); a point beyond it rebuilds the table on global
-	// keys. Either way every voxel is kept once, before and after a spill.
+	// A tile's points 1.7 km apart in z (its table once held tile-local
+	// keys within a z window, rebuilt on global keys beyond it; its blocks
+	// now have global keys): every voxel is kept once, before and after a
+	// spill.
 	outputs::DenseMap untiled(0.05), tiled(0.05, 20.0);
 	auto spill = std::make_shared<core::SpillFile>();
 	std::vector<Eigen::Vector3f> pts;
@@ -266,10 +266,13 @@ TEST(DenseMapSpill, TileBeyondItsHeightWindowKeepsEveryVoxelOnce)
 	EXPECT_EQ(sorted(untiled.points()), sorted(tiled.points()));
 }
 
-TEST(DenseMapSpill, RevisitedTileCostsFourBytesASlot)
+TEST(DenseMapSpill, RevisitedTileCostsItsBlockTableOnly)
 {
 	// 100,000 voxels of one 20 m tile on disk, then one point into it:
-	// only its voxel table comes back (2^18 slots at 3 in 4 at most).
+	// only its table of 4 x 4 x 4-voxel blocks comes back (a 300 x 300
+	// voxel layer and a part of the next, in the same 75 x 75 blocks, and
+	// the new point's: 5,626 blocks at 3 in 4 at most, 2^13 slots of 16
+	// bytes).
 	outputs::DenseMap m(0.05, 20.0);
 	auto spill = std::make_shared<core::SpillFile>();
 	for (int i = 0; i < 100000; i++)
@@ -285,6 +288,46 @@ TEST(DenseMapSpill, RevisitedTileCostsFourBytesASlot)
 	d.xyz = {19.9f, 19.9f, 3.0f};
 	ASSERT_TRUE(m.add(d));
 	EXPECT_EQ(m.tilesSpilled(), 0u);
-	EXPECT_GE(m.memoryBytes(), (size_t(1) << 18) * 4);
-	EXPECT_LT(m.memoryBytes(), (size_t(1) << 18) * 4 + 4096);
+	EXPECT_GE(m.memoryBytes(), (size_t(1) << 13) * 16);
+	EXPECT_LT(m.memoryBytes(), (size_t(1) << 13) * 16 + 4096);
+	// The reloaded table still knows every voxel on disk.
+	d.xyz = {0.05f * 17 + 0.02f, 0.05f * 33 + 0.02f, 0.02f};
+	EXPECT_FALSE(m.add(d));
+	EXPECT_EQ(m.size(), 100001u);
+}
+
+TEST(DenseMapSpill, EveryVoxelOfBlocksAcrossTileBordersKeptOnce)
+{
+	// Tiles of 23 voxels (1.15 m), not a multiple of the 4-voxel blocks:
+	// blocks straddle tile borders, on both sides of the origin. Every
+	// voxel of a 60 x 60 x 8 box (16 tiles) is claimed in a shuffled
+	// order, then
+	// again (all taken), then again after the tiles went to disk.
+	outputs::DenseMap m(0.05, 1.15);
+	auto spill = std::make_shared<core::SpillFile>();
+	std::vector<Eigen::Vector3f> centres;
+	for (int i = -30; i < 30; i++)
+		for (int j = -30; j < 30; j++)
+			for (int k = -4; k < 4; k++)
+				centres.emplace_back(0.05f * i + 0.025f, 0.05f * j + 0.025f,
+				                     0.05f * k + 0.025f);
+	std::mt19937 rng(3);
+	std::shuffle(centres.begin(), centres.end(), rng);
+	for (int pass = 0; pass < 3; pass++)
+	{
+		size_t kept = 0;
+		for (const auto& c : centres)
+		{
+			outputs::DensePoint d;
+			d.xyz = c + Eigen::Vector3f(0.01f, -0.01f, 0.005f) * float(pass);
+			kept += m.add(d);
+		}
+		EXPECT_EQ(kept, pass == 0 ? centres.size() : 0u) << pass;
+		if (pass == 1)
+		{
+			EXPECT_EQ(m.spillFar(Eigen::Vector2d(500, 500), 50, spill), 16u);
+		}
+	}
+	EXPECT_EQ(m.size(), centres.size());
+	EXPECT_EQ(m.tilesSpilled(), 0u);
 }

@@ -12,13 +12,11 @@ namespace forest_slam::outputs
 namespace
 {
 constexpr uint64_t kEmpty = ~uint64_t(0);
-constexpr uint32_t kEmpty32 = ~uint32_t(0);
 constexpr int64_t kHalf = int64_t(1) << 20;  // 21 bits per axis
 constexpr uint64_t kAxis = (uint64_t(1) << 21) - 1;
 constexpr size_t kFirstSlots = 1 << 8;  // small tiles stay small
-/** Most slots in use per table, 3 in 4: a taken voxel (most claims) is
- * found in 2.5 probes on average at that load, and the table costs 11-21
- * bytes per point instead of 16-32 at 1 in 2. */
+/** Most slots in use per table, 3 in 4: a block already in the table (most
+ * claims) is found in 2.5 probes on average at that load. */
 inline bool overLoad(size_t used, size_t slots)
 {
 	return 4 * used > 3 * slots;
@@ -53,18 +51,30 @@ inline size_t slotOf(uint64_t key, size_t mask)
 	return mix(key) & mask;
 }
 
-/** Linear probing: puts `key` into `table`; false if it was there. */
-template <typename K>
-bool probeInsert(std::vector<K>& table, size_t mask, K key, K empty)
+/** The block of a packed voxel key: each axis' index / 4 (the indices are
+ * offset by kHalf, a multiple of 4, so the blocks align with the grid). */
+inline uint64_t blockKeyOf(uint64_t key)
 {
-	size_t slot = slotOf(key, mask);
-	while (table[slot] != empty)
-	{
-		if (table[slot] == key) return false;
+	constexpr uint64_t kKeep = ~((uint64_t(3) << 42) | (uint64_t(3) << 21) | 3);
+	return (key & kKeep) >> 2;
+}
+/** The voxel's bit in its block's mask. */
+inline uint64_t voxelBitOf(uint64_t key)
+{
+	const unsigned i = unsigned(key >> 42) & 3, j = unsigned(key >> 21) & 3,
+	               k = unsigned(key) & 3;
+	return uint64_t(1) << (i * 16 + j * 4 + k);
+}
+
+/** Linear probing: the slot of block `bk` in `table`, or the empty slot
+ * where it goes. */
+template <typename Slot>
+Slot& probe(std::vector<Slot>& table, size_t mask, uint64_t bk)
+{
+	size_t slot = slotOf(bk, mask);
+	while (table[slot].key != bk && table[slot].key != kEmpty)
 		slot = (slot + 1) & mask;
-	}
-	table[slot] = key;
-	return true;
+	return table[slot];
 }
 
 /** Packed voxel key (3 x 21 bits); false beyond 2^20 voxels of the origin. */
@@ -95,30 +105,6 @@ DenseMap::DenseMap(double voxel_m, double tile_m)
 	// Tiles are whole voxels wide, so a voxel never straddles two tiles.
 	if (tile_m > 0)
 		tile_vox_ = std::max<int64_t>(1, std::llround(tile_m / voxel_m));
-	// Tile-local keys below kEmpty32: 20 m tiles of 5 cm voxels span 26843
-	// voxels (1.3 km) of z, far more than a tile's points ever do.
-	if (tile_vox_ > 0 && tile_vox_ <= 65535)
-		z_span_ = int64_t(kEmpty32) / (tile_vox_ * tile_vox_);
-	if (z_span_ < 2) z_span_ = 0;
-}
-
-bool DenseMap::localKey(const Tile& t, uint64_t key, uint32_t& local) const
-{
-	if (t.wide) return false;
-	const int64_t i = int64_t((key >> 42) & kAxis) - kHalf - t.tx * tile_vox_;
-	const int64_t j = int64_t((key >> 21) & kAxis) - kHalf - t.ty * tile_vox_;
-	const int64_t dz = int64_t(key & kAxis) - t.z0;
-	if (dz < 0 || dz >= z_span_) return false;
-	local = uint32_t((i * tile_vox_ + j) * z_span_ + dz);
-	return true;
-}
-
-uint64_t DenseMap::globalKey(const Tile& t, uint32_t local) const
-{
-	const int64_t dz = local % z_span_, ij = local / z_span_;
-	const int64_t i = ij / tile_vox_ + t.tx * tile_vox_ + kHalf,
-	              j = ij % tile_vox_ + t.ty * tile_vox_ + kHalf;
-	return (uint64_t(i) << 42) | (uint64_t(j) << 21) | uint64_t(t.z0 + dz);
 }
 
 uint64_t DenseMap::tileKeyOf(uint64_t key) const
@@ -149,13 +135,7 @@ DenseMap::Tile& DenseMap::tileFor(uint64_t key)
 	auto t = std::make_unique<Tile>();
 	t->tx = int32_t(uint32_t(tk >> 32));
 	t->ty = int32_t(uint32_t(tk));
-	// The z window centred on the tile's first voxel.
-	t->z0 = int64_t(key & kAxis) - z_span_ / 2;
-	t->wide = z_span_ == 0;
-	if (t->wide)
-		t->wide_keys.assign(kFirstSlots, kEmpty);
-	else
-		t->keys.assign(kFirstSlots, kEmpty32);
+	t->blocks.resize(kFirstSlots);
 	t->mask = kFirstSlots - 1;
 	by_key_.emplace(tk, static_cast<uint32_t>(tiles_.size()));
 	tiles_.push_back(std::move(t));
@@ -170,8 +150,7 @@ size_t DenseMap::memoryBytes() const
 	size_t n = core::hashMapBytes(by_key_) + core::vectorBytes(tiles_);
 	for (const auto& t : tiles_)
 		n += sizeof(Tile) + core::vectorBytes(t->points) +
-		     core::vectorBytes(t->keys) + core::vectorBytes(t->wide_keys) +
-		     core::vectorBytes(t->chunks);
+		     core::vectorBytes(t->blocks) + core::vectorBytes(t->chunks);
 	return n;
 }
 
@@ -220,21 +199,25 @@ DensePoint* DenseMap::claimIn(Tile& t, uint64_t key, const Eigen::Vector3f& xyz)
 
 bool DenseMap::insertKey(Tile& t, uint64_t key) const
 {
-	// t.count is the tile's voxels before this one (the caller counts it).
-	if (overLoad(t.count + 1, t.mask + 1)) grow(t);
-	uint32_t local = 0;
-	if (!t.wide && !localKey(t, key, local)) widen(t);
-	return t.wide ? probeInsert(t.wide_keys, t.mask, key, kEmpty)
-	              : probeInsert(t.keys, t.mask, local, kEmpty32);
+	// Room for one more block first (the slot found must stay valid).
+	if (overLoad(t.blocks_used + 1, t.mask + 1)) grow(t);
+	BlockSlot& b = probe(t.blocks, t.mask, blockKeyOf(key));
+	const uint64_t bit = voxelBitOf(key);
+	if (b.key == kEmpty)
+	{
+		b.key = blockKeyOf(key);
+		t.blocks_used++;
+	}
+	else if (b.taken & bit)
+		return false;
+	b.taken |= bit;
+	return true;
 }
 
 const void* DenseMap::slotAddress(const Tile& t, uint64_t key) const
 {
-	if (t.spilled) return nullptr;
-	if (t.wide) return &t.wide_keys[slotOf(key, t.mask)];
-	uint32_t local;
-	if (!localKey(t, key, local)) return nullptr;
-	return &t.keys[slotOf(local, t.mask)];
+	if (t.spilled || t.blocks.empty()) return nullptr;
+	return &t.blocks[slotOf(blockKeyOf(key), t.mask)];
 }
 
 void DenseMap::prefetch(const Eigen::Vector3f& xyz) const
@@ -263,36 +246,22 @@ std::vector<DensePoint> DenseMap::points() const
 
 namespace
 {
-/** Moves the keys of `table` into a table twice as large (or of `slots`). */
-template <typename K>
-void rehashTable(std::vector<K>& table, size_t& mask, size_t slots, K empty)
+/** Moves the blocks of `table` into a table of `slots` slots. */
+template <typename Slot>
+void rehashTable(std::vector<Slot>& table, size_t& mask, size_t slots)
 {
-	std::vector<K> old(slots, empty);
+	std::vector<Slot> old(slots);
 	old.swap(table);
 	adviseHugePages(table);
 	mask = table.size() - 1;
-	for (const K k : old)
-		if (k != empty) probeInsert(table, mask, k, empty);
+	for (const Slot& b : old)
+		if (b.key != kEmpty) probe(table, mask, b.key) = b;
 }
 }  // namespace
 
 void DenseMap::grow(Tile& t) const
 {
-	if (t.wide)
-		rehashTable(t.wide_keys, t.mask, 2 * (t.mask + 1), kEmpty);
-	else
-		rehashTable(t.keys, t.mask, 2 * (t.mask + 1), kEmpty32);
-}
-
-void DenseMap::widen(Tile& t) const
-{
-	std::vector<uint64_t> wide(t.mask + 1, kEmpty);
-	adviseHugePages(wide);
-	for (const uint32_t k : t.keys)
-		if (k != kEmpty32) probeInsert(wide, t.mask, globalKey(t, k), kEmpty);
-	std::vector<uint32_t>().swap(t.keys);
-	t.wide_keys.swap(wide);
-	t.wide = true;
+	rehashTable(t.blocks, t.mask, 2 * (t.mask + 1));
 }
 
 size_t DenseMap::spillFar(const Eigen::Vector2d& centre, double radius_m,
@@ -320,8 +289,7 @@ size_t DenseMap::spillFar(const Eigen::Vector2d& centre, double radius_m,
 			t.chunks.push_back(
 			    {spill_->appendVector(t.points), t.points.size()});
 		std::vector<DensePoint>().swap(t.points);
-		std::vector<uint32_t>().swap(t.keys);
-		std::vector<uint64_t>().swap(t.wide_keys);
+		std::vector<BlockSlot>().swap(t.blocks);
 		t.mask = 0;
 		t.spilled = true;
 		moved++;
@@ -344,9 +312,9 @@ void DenseMap::transformPoints(const std::function<void(DensePoint&)>& move)
 		}
 		for (auto& p : t.points) move(p);
 		// The voxel table no longer matches the points.
-		std::vector<uint32_t>().swap(t.keys);
-		std::vector<uint64_t>().swap(t.wide_keys);
+		std::vector<BlockSlot>().swap(t.blocks);
 		t.mask = 0;
+		t.blocks_used = 0;
 	}
 	moved_ = true;
 	have_last_ = false;
@@ -354,24 +322,15 @@ void DenseMap::transformPoints(const std::function<void(DensePoint&)>& move)
 
 void DenseMap::reload(Tile& t)
 {
-	// The table only: a revisit near the sensor costs 5-11 bytes per
-	// point of the tile, not the points themselves (20 bytes) as well.
+	// The table only: a revisit near the sensor costs its blocks (~1.5
+	// bytes a point), not the points themselves (20 bytes) as well.
 	size_t slots = kFirstSlots;
-	while (overLoad(t.count + 1, slots)) slots *= 2;
+	while (overLoad(t.blocks_used + 1, slots)) slots *= 2;
 	t.mask = slots - 1;
-	if (t.wide)
-	{
-		t.wide_keys.assign(slots, kEmpty);
-		adviseHugePages(t.wide_keys);
-	}
-	else
-	{
-		t.keys.assign(slots, kEmpty32);
-		adviseHugePages(t.keys);
-	}
-	// The table is sized for every point already: no growth on the way.
-	const size_t count = t.count;
-	t.count = 0;
+	t.blocks.assign(slots, BlockSlot{});
+	adviseHugePages(t.blocks);
+	t.blocks_used = 0;
+	// The table is sized for every block already: no growth on the way.
 	std::vector<DensePoint> buf;
 	for (const auto& c : t.chunks)
 	{
@@ -381,10 +340,8 @@ void DenseMap::reload(Tile& t)
 			uint64_t key = 0;
 			voxelKey(p.xyz, inv_voxel_, key);
 			insertKey(t, key);
-			t.count++;
 		}
 	}
-	t.count = count;
 	t.spilled = false;
 }
 

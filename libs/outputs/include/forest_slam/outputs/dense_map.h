@@ -103,6 +103,11 @@ class DenseMap
 	size_t tilesSpilled() const;
 
    private:
+	struct BlockSlot
+	{
+		uint64_t key = ~uint64_t(0);  ///< packed block key; all ones: empty
+		uint64_t taken = 0;           ///< bit (i%4)*16 + (j%4)*4 + k%4
+	};
 	/** Points of a tile written to the spill file (in keeping order). */
 	struct Chunk
 	{
@@ -115,26 +120,22 @@ class DenseMap
 		std::vector<Chunk> chunks;  ///< on disk: the tile's first points
 		std::vector<DensePoint> points;  ///< in memory: the points after
 		size_t count = 0;                ///< chunks + points
-		// Open addressing (linear probing) on voxel keys: no allocation
-		// per voxel; lookups miss the CPU cache, so callers prefetch() a
-		// batch of points ahead of claiming them. A slot only says "voxel
-		// taken": a taken voxel's point is never looked up. The keys are
-		// the voxel's index within the tile (4 bytes: half the table of
-		// the global key) while the tile's points lie within z_span_
-		// voxels of z0; a tile with a point beyond is rebuilt on the global
-		// keys (`wide`, 8 bytes), as is the single tile of an untiled map.
-		std::vector<uint32_t> keys;       ///< kEmpty32 or tile-local key
-		std::vector<uint64_t> wide_keys;  ///< kEmpty or packed voxel key
+		// Open addressing (linear probing) on blocks of 4 x 4 x 4 voxels:
+		// a slot holds a block's key and one bit per voxel ("taken"; a
+		// taken voxel's point is never looked up). The table is far larger
+		// than the CPU caches and the claims are bound by its misses: a
+		// block of 5 cm voxels holds ~15 kept points on the forest-sim
+		// runs, so a scan's neighbouring returns share a slot (one cache
+		// line) and a slot costs ~1.5 bytes a point instead of 5-11 for a
+		// table of 4-byte voxel keys. Callers prefetch() a batch of points
+		// ahead of claiming them.
+		std::vector<BlockSlot> blocks;
 		size_t mask = 0;
-		bool wide = false;
-		int64_t z0 = 0;        ///< packed z index of tile-local z 0
-		bool spilled = false;  ///< no voxel table: every point on disk
+		size_t blocks_used = 0;  ///< kept while spilled: sizes the reload
+		bool spilled = false;    ///< no voxel table: every point on disk
 	};
 	double voxel_m_, inv_voxel_;
 	int64_t tile_vox_;  ///< voxels per tile edge; 0: one tile
-	/** Voxels of z a tile-local key spans (tile_vox_^2 * z_span_ < 2^32);
-	 * 0: tile-local keys do not fit, every tile is wide. */
-	int64_t z_span_ = 0;
 	double t0_ = 0;
 	size_t size_ = 0;
 	std::vector<std::unique_ptr<Tile>> tiles_;       ///< creation order
@@ -150,12 +151,6 @@ class DenseMap
 	Tile* findTile(uint64_t voxel_key) const;
 	Tile& tileFor(uint64_t voxel_key);
 	void grow(Tile& t) const;
-	/** Tile-local key of a packed voxel key of tile t; false if the voxel
-	 * lies outside the tile's z window (or the tile is wide). */
-	bool localKey(const Tile& t, uint64_t key, uint32_t& local) const;
-	uint64_t globalKey(const Tile& t, uint32_t local) const;
-	/** Rebuilds t's table on global keys (a point beyond its z window). */
-	void widen(Tile& t) const;
 	/** Marks the voxel taken; false if it was taken already. */
 	bool insertKey(Tile& t, uint64_t key) const;
 	/** The slot to prefetch for `key`, nullptr if t has no table. */
