@@ -215,10 +215,11 @@ int main(int argc, char** argv)
 	// pending voxels) faulted every page in again: ~420 page faults a
 	// scan, the back-end's CPU mostly page faults (handheld, 2000 scans:
 	// 830 k -> 430 k faults, back-end 1.75 -> 0.3 ms a scan, system time
-	// 11.3 -> 7.9 s, peak RSS +1 %). The freed heap goes back every 30 s
-	// of data instead (core::releaseFreedHeap in the mapping loop) and
-	// after the big end-of-run steps.
-	mallopt(M_TRIM_THRESHOLD, 128 << 20);
+	// 11.3 -> 7.9 s). The freed heap goes back every 30 s of data instead
+	// (core::releaseFreedHeap in the mapping loop); the end-of-run steps
+	// go back to the 128 kB (the mapping pipeline's finish).
+	forest_slam::core::setHeapKeptFree(
+	    forest_slam::core::kHeapKeptWhileMapping);
 	std::vector<std::string> args(argv + 1, argv + argc);
 	try
 	{

@@ -63,6 +63,12 @@ double releaseFreedHeap()
 	return before - currentRssMb();
 }
 
+bool setHeapKeptFree(size_t bytes)
+{
+	return mallopt(M_TRIM_THRESHOLD, int(std::min<size_t>(bytes, INT32_MAX))) ==
+	       1;
+}
+
 double peakRssMb()
 {
 	rusage u{};

@@ -35,6 +35,17 @@ HeapUse heapUse();
  * Returns the RSS released [MB]. Takes 10-30 ms for a ~1 GB heap, during
  * which other threads' malloc calls wait for their arena. */
 double releaseFreedHeap();
+/** Free bytes malloc may keep at the top of one of its heaps before free()
+ * hands them back to the system (mallopt M_TRIM_THRESHOLD). While scans
+ * are mapped: kHeapKeptWhileMapping, so that the buffers a worker frees
+ * and allocates again every scan or keyframe do not fault their pages in
+ * each time (the mapping loop gives the freed heap back every 30 s of
+ * data instead, releaseFreedHeap). For the end-of-run steps, which free
+ * their buffers once: glibc's default, kHeapKeptAtTheEnd. Returns false if
+ * malloc refused. */
+bool setHeapKeptFree(size_t bytes);
+inline constexpr size_t kHeapKeptWhileMapping = size_t(128) << 20;
+inline constexpr size_t kHeapKeptAtTheEnd = size_t(128) << 10;
 /** Peak resident set size of this process so far [MB] (getrusage). */
 double peakRssMb();
 /** CPU time of this process so far, user + system, all threads [s]. */
