@@ -210,6 +210,11 @@ TEST(TreeLayer, SpilledColumnsReloadIdentically)
 		};
 		for (double x = -5; x <= 95; x += 2.0) step(x);
 		EXPECT_GT(max_spilled, 0u) << "nothing was spilled";
+		// The spilling's CPU is counted apart (run_summary.json), within
+		// the layer's; a layer kept in memory spends none on it.
+		EXPECT_GT(spill.stats().spill_cpu_ms, 0.0);
+		EXPECT_LE(spill.stats().spill_cpu_ms, spill.stats().cpu_ms);
+		EXPECT_EQ(mem.stats().spill_cpu_ms, 0.0);
 		EXPECT_LT(spill.memoryBytes(), mem.memoryBytes());
 		for (double x = 95; x >= -5; x -= 2.0) step(x);
 		Eigen::Isometry3d T = Eigen::Isometry3d::Identity();

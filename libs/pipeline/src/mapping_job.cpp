@@ -549,6 +549,8 @@ std::vector<std::string> writeOutputs(const MappingPipeline& p,
 		       << (layer ? layer->stats().store_cpu_ms : 0)
 		       << ", \"correct_cpu_ms\": "
 		       << (layer ? layer->stats().correct_cpu_ms : 0)
+		       << ", \"spill_cpu_ms\": "
+		       << (layer ? layer->stats().spill_cpu_ms : 0)
 		       << ", \"finish_ms\": " << s.tree_finish_ms
 		       << ", \"correct_ms\": "
 		       << (layer ? layer->stats().correct_ms : 0)

@@ -612,6 +612,7 @@ const TreeLayer::SortedVoxels& TreeLayer::readable(
 void TreeLayer::spillFar(const Eigen::Vector3d& sensor)
 {
 	if (!spill_) return;
+	const CpuTally cpu(stats_.spill_cpu_ms);  // update() counts it in cpu_ms
 	// Beyond the reach of new points (which would not read it back). A
 	// column due for detection during the run stays until then (it would
 	// be written twice). Detections read a spilled column without keeping

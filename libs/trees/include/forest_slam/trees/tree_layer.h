@@ -75,6 +75,9 @@ struct TreeLayerStats
 	 * with loop corrections (in-run merges and the final correction). */
 	double store_cpu_ms = 0;
 	double correct_cpu_ms = 0;
+	/** Of cpu_ms: writing the columns out of the sensor's reach to the
+	 * spill file (a revisited column is merged with its copy on disk). */
+	double spill_cpu_ms = 0;
 	std::vector<double> detect_ms_each;  ///< per column detection
 	size_t stored_voxels = 0;            ///< stem-band voxels now
 	/** Stem-band voxels when releaseStemVoxels() freed them (0 before). */
