@@ -921,38 +921,57 @@ TEST(TreeLayer, OnlyColumnsWherePassesPiledUpAreMergedEachFromItsOwnFrame)
 // random order, every cell twice, spread over ~500 x cells.
 TEST(TreeLayer, StoredVoxelsSortedOnePerCell)
 {
-	TreeOptions o;
-	o.layer_spill_to_disk = false;
-	o.dbh_segment_scans = 0;  // one voxel per cell (no time segments)
-	TreeLayer layer(o, 20.0);
-	const double v = o.layer_voxel_m;
-	std::mt19937 rng(7);
-	std::uniform_int_distribution<int> cx(1, 500), cy(1, 40), cz(40, 120);
-	std::uniform_real_distribution<double> jitter(-0.3, 0.3);
-	std::set<std::tuple<int, int, int>> cells;
-	std::vector<Eigen::Vector3f> pts;
-	for (int i = 0; i < 30000; i++) cells.emplace(cx(rng), cy(rng), cz(rng));
-	for (int copy = 0; copy < 2; copy++)
-		for (const auto& [x, y, z] : cells)
-			pts.emplace_back(float((x + 0.5 + jitter(rng)) * v),
-			                 float((y + 0.5 + jitter(rng)) * v),
-			                 float((z + 0.5 + jitter(rng)) * v));
-	std::shuffle(pts.begin(), pts.end(), rng);
-	// Flat ground at z = 0 under all of it.
-	for (double x = 0; x < 11; x += 0.25)
-		for (double y = 0; y < 1; y += 0.25) pts.emplace_back(x, y, 0.0f);
-	layer.addScan(pts, Eigen::Vector3d(5, -1, 1.5));
-	// The area seen: the 0.5 m ground cells of 11 m x 1 m.
-	EXPECT_EQ(layer.groundCells(), 22u * 2u);
-	const auto stored = layer.stemPoints(layer.columnOf(5, 0.5));
-	ASSERT_EQ(stored.size(), cells.size());
-	auto cellOf = [&](const Eigen::Vector3f& p)
+	// Cells over 500 x 40 x 80 voxels (y and z codes of 13 bits: the radix
+	// sort in two digits) and 500 x 40 x 20 (11 bits: one digit); two
+	// passes, so each cell holds two voxels that the sort must put next to
+	// each other for the points of each to be summed into one.
+	for (const int z_cells : {80, 20})
 	{
-		return std::make_tuple(int(std::floor(p.x() / v)),
-		                       int(std::floor(p.y() / v)),
-		                       int(std::floor(p.z() / v)));
-	};
-	auto it = cells.begin();
-	for (size_t i = 0; i < stored.size(); i++, ++it)
-		ASSERT_EQ(cellOf(stored[i]), *it) << i;
+		SCOPED_TRACE("z cells " + std::to_string(z_cells));
+		TreeOptions o;
+		o.layer_spill_to_disk = false;
+		o.dbh_segment_scans = 0;  // one voxel per cell (no time segments)
+		TreeLayer layer(o, 20.0);
+		const double v = o.layer_voxel_m;
+		std::mt19937 rng(7);
+		std::uniform_int_distribution<int> cx(1, 500), cy(1, 40),
+		    cz(40, 40 + z_cells - 1);
+		std::uniform_real_distribution<double> jitter(-0.3, 0.3);
+		std::set<std::tuple<int, int, int>> cells;
+		for (int i = 0; i < 30000; i++)
+			cells.emplace(cx(rng), cy(rng), cz(rng));
+		for (int pass = 0; pass < 2; pass++)
+		{
+			std::vector<Eigen::Vector3f> pts;
+			for (int copy = 0; copy < 2; copy++)
+				for (const auto& [x, y, z] : cells)
+					pts.emplace_back(float((x + 0.5 + jitter(rng)) * v),
+					                 float((y + 0.5 + jitter(rng)) * v),
+					                 float((z + 0.5 + jitter(rng)) * v));
+			std::shuffle(pts.begin(), pts.end(), rng);
+			// Flat ground at z = 0 under all of it.
+			for (double x = 0; x < 11; x += 0.25)
+				for (double y = 0; y < 1; y += 0.25)
+					pts.emplace_back(x, y, 0.0f);
+			if (pass > 0) layer.startPass();
+			layer.addScan(pts, Eigen::Vector3d(5, -1, 1.5));
+		}
+		// The area seen: the 0.5 m ground cells of 11 m x 1 m.
+		EXPECT_EQ(layer.groundCells(), 22u * 2u);
+		const auto stored = layer.stemPoints(layer.columnOf(5, 0.5));
+		ASSERT_EQ(stored.size(), cells.size());
+		auto cellOf = [&](const Eigen::Vector3f& p)
+		{
+			return std::make_tuple(int(std::floor(p.x() / v)),
+			                       int(std::floor(p.y() / v)),
+			                       int(std::floor(p.z() / v)));
+		};
+		auto it = cells.begin();
+		for (size_t i = 0; i < stored.size(); i++, ++it)
+			ASSERT_EQ(cellOf(stored[i]), *it) << i;
+		// Every cell's points of a pass summed into one voxel.
+		map::CForestMap m;
+		layer.finish(m);
+		EXPECT_EQ(layer.stats().stored_voxels, 2 * cells.size());
+	}
 }

@@ -419,6 +419,77 @@ bool sameVoxel(const V& a, const V& b)
 {
 	return a.key == b.key && a.pass == b.pass && a.segment == b.segment;
 }
+/** Sorts [a, e), voxels of one x cell, by voxelLess: a radix sort on the
+ * y and z cells (least significant digit first, through `tmp`), then the
+ * few voxels of one cell put in (pass, segment) order. Where the y and z
+ * cells need more than 24 bits together (spans of ~80 m each), or the
+ * bucket is tiny, std::sort. The per-bucket std::sort was 1.6 % of a robot
+ * run's CPU (the radix sort: 10 instead of 39 ns a voxel on a column's buffered
+ * points, 11 instead of 21 on a corrected column). Equal voxels (the
+ * buffered points of one cell) come out in another order than
+ * std::sort's, so their sums round differently (the last bit). */
+template <class V>
+void sortBucket(V* a, V* e, std::vector<V>& tmp)
+{
+	const size_t n = size_t(e - a);
+	const auto less = [](const V& x, const V& y) { return voxelLess(x, y); };
+	constexpr size_t kMinRadix = 64;
+	if (n < kMinRadix)
+	{
+		std::sort(a, e, less);
+		return;
+	}
+	const uint64_t m = (uint64_t(1) << 21) - 1;
+	uint64_t ylo = m, yhi = 0, zlo = m, zhi = 0;
+	for (const V* p = a; p != e; p++)
+	{
+		const uint64_t y = (p->key >> 21) & m, z = p->key & m;
+		ylo = std::min(ylo, y), yhi = std::max(yhi, y);
+		zlo = std::min(zlo, z), zhi = std::max(zhi, z);
+	}
+	const auto bitsFor = [](uint64_t span)
+	{ return 64 - __builtin_clzll(span | 1); };
+	const int zb = bitsFor(zhi - zlo), bits = bitsFor(yhi - ylo) + zb;
+	constexpr int kMaxBits = 24;
+	if (bits > kMaxBits)
+	{
+		std::sort(a, e, less);
+		return;
+	}
+	const auto code = [&](const V& x)
+	{
+		return uint32_t(((x.key >> 21) & m) - ylo) << zb |
+		       uint32_t((x.key & m) - zlo);
+	};
+	const int passes = bits <= kMaxBits / 2 ? 1 : 2;
+	const int digit = (bits + passes - 1) / passes;
+	const uint32_t mask = (uint32_t(1) << digit) - 1;
+	uint32_t count[uint32_t(1) << (kMaxBits / 2)];
+	tmp.resize(n);
+	V *src = a, *dst = tmp.data();
+	for (int p = 0; p < passes; p++)
+	{
+		const int shift = p * digit;
+		std::fill(count, count + mask + 1, 0u);
+		for (size_t i = 0; i < n; i++) count[(code(src[i]) >> shift) & mask]++;
+		uint32_t sum = 0;
+		for (uint32_t d = 0; d <= mask; d++)
+			sum += std::exchange(count[d], sum);
+		for (size_t i = 0; i < n; i++)
+			dst[count[(code(src[i]) >> shift) & mask]++] = src[i];
+		std::swap(src, dst);
+	}
+	if (src != a) std::copy(src, src + n, a);
+	for (size_t i = 1; i < n; i++)
+	{
+		if (!(a[i].key == a[i - 1].key && less(a[i], a[i - 1]))) continue;
+		const V x = a[i];
+		size_t j = i;
+		for (; j > 0 && a[j - 1].key == x.key && less(x, a[j - 1]); j--)
+			a[j] = a[j - 1];
+		a[j] = x;
+	}
+}
 /** Sorts by voxelLess. Bucketed first by the key's x cell (its top bits: a
  * column spans ~1000 cells), in place (American flag sort), then each
  * bucket sorted on its own, in cache: one std::sort of a column's millions
@@ -458,8 +529,9 @@ void sortVoxels(std::vector<V>& v)
 				std::swap(x, v[next[t]++]);
 			v[next[b]++] = x;
 		}
+	std::vector<V> tmp;  // the largest bucket's size
 	for (size_t b = 0; b < nb; b++)
-		std::sort(v.begin() + start[b], v.begin() + start[b + 1], less);
+		sortBucket(v.data() + start[b], v.data() + start[b + 1], tmp);
 }
 /** `v` into `m` (same key, pass and segment): the time averaged too. */
 template <class V>
