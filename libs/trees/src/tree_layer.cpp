@@ -201,19 +201,22 @@ float TreeLayer::SortedVoxels::transformByTime(
 	// saturates, and so does the comparison).
 	const auto merged = [last = std::min<uint32_t>(last_pass, 0xffff)](
 	                        const Voxel& v) { return v.pass <= last; };
-	float worst = 0;
+	// The largest squared distance (one square root at the end, not one
+	// per voxel: the same value, as the root is monotonic).
+	float worst2 = 0;
 	for (auto& v : voxels_)  // in place, as transform()
 	{
 		if (!merged(v)) continue;
 		const Eigen::Isometry3f C = at(v.time);
 		const Eigen::Vector3f c0 = centroid(v), c = C * c0;
-		worst = std::max(worst, (c - T * c0).norm());
+		worst2 = std::max(worst2, (c - T * c0).squaredNorm());
 		v.key = keyOf(c);
 		setOffset(v, c - centreOf(v.key));
 		setDir(v, C.linear() * dirOf(v));
 		// Corrected, the passes agree: merged again (pass 0).
 		if (!dominant_time) v.pass = 0;
 	}
+	const float worst = std::sqrt(worst2);
 	sortAndCombine();
 	if (!dominant_time) return worst;
 	// Within a pass the times were averaged (sortAndCombine); across the
