@@ -917,8 +917,9 @@ TEST(TreeLayer, OnlyColumnsWherePassesPiledUpAreMergedEachFromItsOwnFrame)
 }
 
 // The store keeps a column's voxels sorted by cell (x, then y, then z; the
-// sort buckets by x cell first) with one voxel per cell: points given in
-// random order, every cell twice, spread over ~500 x cells.
+// sort buckets by x cell first, then sorts each bucket by radix) with one
+// voxel per cell and pass: points given in random order, every cell twice
+// in each of two passes, spread over ~500 x cells.
 TEST(TreeLayer, StoredVoxelsSortedOnePerCell)
 {
 	// Cells over 500 x 40 x 80 voxels (y and z codes of 13 bits: the radix
