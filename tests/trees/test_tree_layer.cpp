@@ -2,6 +2,7 @@
 // strip seen from a moving sensor; columns are detected once the sensor has
 // left them, stems on a column border are reported once, and a loop
 // correction moves a column's trees.
+#include <forest_slam/core/config.h>
 #include <forest_slam/map/forest_map.h>
 #include <forest_slam/trees/column_input.h>
 #include <forest_slam/trees/tree_layer.h>
@@ -163,6 +164,72 @@ TEST(TreeLayer, ColumnsDetectedAsTheSensorLeavesThem)
 		if (std::abs(r.y - 6) < 0.5)
 		{
 			EXPECT_NEAR(r.x, 27.5, 0.02);
+		}
+	}
+}
+
+TEST(TreeLayer, RevisitedColumnDetectedAgainInTheRunOnlyOnceItGrew)
+{
+	// Out along y = 0, back, and out again: the first two columns are left
+	// (sensor > 30 m past them) on the first and on the third walk. The two
+	// walks since their first detection about double their stores (new
+	// noise and new time segments: 25.5 k → 53.3 k and 18.3 k → 38.2 k
+	// voxels).
+	const std::vector<Stem> stems = {{4, 5, 0.15},
+	                                 {9, -6, 0.2},
+	                                 {14, 4, 0.1},
+	                                 {27, 6, 0.25},
+	                                 {33, -5, 0.12}};
+	struct Run
+	{
+		TreeLayerStats stats;
+		std::vector<map::TreeRecord> trees;
+	};
+	auto run = [&](double growth)
+	{
+		TreeOptions o;
+		o.layer_redetect_growth = growth;
+		TreeLayer layer(o, 20.0, /*detect_during_run=*/true);
+		map::CForestMap m;
+		std::mt19937 rng(11);
+		walk(layer, m, stems, -5, 70, 1.0, rng);
+		for (double x = 70; x >= -5; x -= 1.0)
+		{
+			const Eigen::Vector3d s(x, 0, ground(x, 0) + 1.5);
+			layer.addScan(scan(stems, s, rng), s);
+			layer.update(s, m);
+		}
+		walk(layer, m, stems, -5, 70, 1.0, rng);
+		layer.finish(m);
+		auto trees = m.trees();
+		std::sort(trees.begin(), trees.end(),
+		          [](const auto& a, const auto& b) { return a.x < b.x; });
+		return Run{layer.stats(), trees};
+	};
+	const Run every = run(1.0), grown = run(1.5), little = run(3.0);
+	// Every change: detected on the first walk and again on the third.
+	EXPECT_EQ(every.stats.detections_in_run, 4u);
+	EXPECT_EQ(every.stats.redetections_in_run, 2u);
+	// Grown by 1.5 times: the same.
+	EXPECT_EQ(grown.stats.detections_in_run, 4u);
+	EXPECT_EQ(grown.stats.redetections_in_run, 2u);
+	// Not grown by 3 times: left for the end of the run.
+	EXPECT_EQ(little.stats.detections_in_run, 2u);
+	EXPECT_EQ(little.stats.redetections_in_run, 0u);
+	// Their detection moved to the end of the run (the third walk left
+	// them as the first two runs' last detections did).
+	EXPECT_EQ(little.stats.detections - little.stats.detections_in_run,
+	          every.stats.detections - every.stats.detections_in_run + 2);
+	// The end of the run detects what was left: the same trees.
+	ASSERT_EQ(every.trees.size(), stems.size());
+	for (const Run* r : {&grown, &little})
+	{
+		ASSERT_EQ(r->trees.size(), every.trees.size());
+		for (size_t i = 0; i < every.trees.size(); i++)
+		{
+			EXPECT_NEAR(r->trees[i].x, every.trees[i].x, 1e-6);
+			EXPECT_NEAR(r->trees[i].y, every.trees[i].y, 1e-6);
+			EXPECT_NEAR(r->trees[i].dbh_m, every.trees[i].dbh_m, 1e-6);
 		}
 	}
 }
@@ -431,6 +498,31 @@ TEST(TreeOptions, DetectDuringRunResolvesAutoByInput)
 	EXPECT_TRUE(o.detectDuringRun(false));
 	o.layer_detect_during_run = "false";
 	EXPECT_FALSE(o.detectDuringRun(true));
+}
+
+TEST(TreeOptions, RedetectGrowthBelowOneIsRejectedByName)
+{
+	TreeOptions o;
+	EXPECT_EQ(o.layer_redetect_growth, 2.0);
+	auto ok = core::TrackedConfig::fromText(
+	    "[trees]\nlayer_redetect_growth = 1\n", "t.ini");
+	o.loadFromConfigFile(ok, "trees");
+	EXPECT_EQ(o.layer_redetect_growth, 1.0);
+	auto bad = core::TrackedConfig::fromText(
+	    "[trees]\nlayer_redetect_growth = 0.5\n", "t.ini");
+	try
+	{
+		o.loadFromConfigFile(bad, "trees");
+		FAIL() << "layer_redetect_growth = 0.5 accepted";
+	}
+	catch (const core::ConfigError& e)
+	{
+		EXPECT_NE(std::string(e.what()).find("t.ini"), std::string::npos)
+		    << e.what();
+		EXPECT_NE(std::string(e.what()).find("layer_redetect_growth"),
+		          std::string::npos)
+		    << e.what();
+	}
 }
 
 namespace

@@ -556,6 +556,10 @@ std::vector<std::string> writeOutputs(const MappingPipeline& p,
 		       << (layer ? layer->stats().correct_ms : 0)
 		       << ", \"detections\": "
 		       << (layer ? layer->stats().detections : 0)
+		       << ", \"detections_in_run\": "
+		       << (layer ? layer->stats().detections_in_run : 0)
+		       << ", \"redetections_in_run\": "
+		       << (layer ? layer->stats().redetections_in_run : 0)
 		       << ", \"detect_ms\": " << (layer ? layer->stats().detect_ms : 0)
 		       << ", \"stem_voxels\": "
 		       << (layer ? layer->stats().stored_voxels +

@@ -690,11 +690,12 @@ void TreeLayer::spillFar(const Eigen::Vector3d& sensor)
 	const CpuTally cpu(stats_.spill_cpu_ms);  // update() counts it in cpu_ms
 	// Beyond the reach of new points (which would not read it back). A
 	// column due for detection during the run stays until then (it would
-	// be written twice). Detections read a spilled column without keeping
-	// it.
+	// be written twice); one changed but left for the end of the run
+	// (layer_redetect_growth) goes. Detections read a spilled column
+	// without keeping it.
 	const double far = o_.layer_max_range_m;
 	for (auto& [k, c] : cols_)
-		if ((!c.dirty || !detect_during_run_) && c.stem.sizeInMemory() > 0 &&
+		if (!dueInRun(c) && c.stem.sizeInMemory() > 0 &&
 		    distanceToSquare(sensor.x(), sensor.y(), k.x * column_m_,
 		                     k.y * column_m_, column_m_) > far)
 			c.stem.spill(*spill_);
@@ -887,14 +888,23 @@ size_t TreeLayer::update(const Eigen::Vector3d& sensor, map::CForestMap& map)
 {
 	const CpuTally cpu(stats_.cpu_ms);
 	std::vector<ColumnKey> due;
-	for (const auto& [k, c] : cols_)
+	for (auto& [k, c] : cols_)
 		if (detect_during_run_ && c.dirty &&
 		    distanceToSquare(sensor.x(), sensor.y(), k.x * column_m_,
 		                     k.y * column_m_,
 		                     column_m_) > o_.layer_complete_distance_m)
-			due.push_back(k);
+		{
+			// Its growth on voxels: the buffered points are one each.
+			c.stem.compact();
+			if (dueInRun(c)) due.push_back(k);
+		}
 	if (!due.empty()) compactAll();
-	for (const auto& k : due) detectColumn(k, map);
+	for (const auto& k : due)
+	{
+		stats_.detections_in_run++;
+		if (cols_.at(k).detected) stats_.redetections_in_run++;
+		detectColumn(k, map);
+	}
 	if (!due.empty()) publish(map);
 	spillFar(sensor);
 	return due.size();
@@ -1108,6 +1118,8 @@ void TreeLayer::giveTrees(const ColumnKey& k,
 {
 	Column& col = cols_.at(k);
 	col.dirty = false;
+	col.detected = true;
+	col.detected_voxels = col.stem.size();
 	// Keep the ids of trees seen before (online users refer to them).
 	std::vector<char> reused(col.trees.size(), 0);
 	for (auto& t : found)

@@ -4,6 +4,7 @@
 #include <mrpt/config/CConfigFileBase.h>
 
 #include <stdexcept>
+#include <string>
 
 namespace forest_slam::trees
 {
@@ -18,27 +19,27 @@ namespace forest_slam::trees
 	X(kmeans_branching)                                                        \
 	X(kmeans_leaf_points)                                                      \
 	X(link_distance_m)                                                         \
-	X(min_slice_points) X(min_dbh_m) X(max_dbh_m) X(section_max_rmse_m) X(     \
-	    section_rmse_rel) X(section_min_arc_deg) X(section_min_inlier_ratio)   \
-	    X(max_centre_step_m) X(max_radius_ratio) X(max_slice_gap) X(           \
-	        min_slices) X(max_lean_deg) X(max_taper_m_per_m)                   \
-	        X(max_axis_rmse_m) X(min_tree_points) X(dbh_height_m) X(           \
-	            dbh_band_half_m) X(sor_k) X(sor_omega) X(min_dbh_points)       \
-	            X(ransac_iterations) X(ransac_inlier_m) X(seed) X(arc_bin_deg) \
-	                X(good_arc_deg) X(good_rmse_m) X(top_search_radius_m) X(   \
-	                    top_max_gap_m) X(layer_enabled) X(layer_voxel_m)       \
-	                    X(layer_ground_cell_m) X(layer_min_hag_m) X(           \
-	                        layer_max_hag_m) X(layer_max_range_m)              \
-	                        X(layer_complete_distance_m) X(layer_margin_m) X(  \
-	                            slice_cell_m) X(dbh_along_rays)                \
-	                            X(section_ring_search) X(                      \
-	                                layer_spill_to_disk) X(dbh_segment_scans)  \
-	                                X(dbh_segment_shift_m) X(dbh_range_step_m) \
-	                                    X(dbh_segment_band_half_m)             \
-	                                        X(dbh_drift_sigma_m_per_s)         \
-	                                            X(layer_detect_during_run)     \
-	                                                X(dbh_silhouette_max_m)    \
-	                                                    X(layer_dump_dir)
+	X(min_slice_points)                                                        \
+	X(min_dbh_m) X(max_dbh_m) X(section_max_rmse_m) X(section_rmse_rel) X(     \
+	    section_min_arc_deg) X(section_min_inlier_ratio) X(max_centre_step_m)  \
+	    X(max_radius_ratio) X(max_slice_gap) X(min_slices) X(max_lean_deg) X(  \
+	        max_taper_m_per_m) X(max_axis_rmse_m) X(min_tree_points)           \
+	        X(dbh_height_m) X(dbh_band_half_m) X(sor_k) X(sor_omega) X(        \
+	            min_dbh_points) X(ransac_iterations) X(ransac_inlier_m)        \
+	            X(seed) X(arc_bin_deg) X(good_arc_deg) X(good_rmse_m) X(       \
+	                top_search_radius_m) X(top_max_gap_m) X(layer_enabled)     \
+	                X(layer_voxel_m) X(layer_ground_cell_m) X(                 \
+	                    layer_min_hag_m) X(layer_max_hag_m)                    \
+	                    X(layer_max_range_m) X(layer_complete_distance_m) X(   \
+	                        layer_margin_m) X(slice_cell_m) X(dbh_along_rays)  \
+	                        X(section_ring_search) X(layer_spill_to_disk) X(   \
+	                            dbh_segment_scans) X(dbh_segment_shift_m)      \
+	                            X(dbh_range_step_m) X(dbh_segment_band_half_m) \
+	                                X(dbh_drift_sigma_m_per_s)                 \
+	                                    X(layer_detect_during_run)             \
+	                                        X(layer_redetect_growth)           \
+	                                            X(dbh_silhouette_max_m)        \
+	                                                X(layer_dump_dir)
 
 void TreeOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
                                      const std::string& s)
@@ -80,6 +81,10 @@ void TreeOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 	    layer_detect_during_run != "true" && layer_detect_during_run != "false")
 		bad("layer_detect_during_run must be auto, true or false, got '" +
 		    layer_detect_during_run + "'");
+	if (!(layer_redetect_growth >= 1))
+		bad("layer_redetect_growth must be >= 1 (1: detect a column again "
+		    "after every change), got " +
+		    std::to_string(layer_redetect_growth));
 	if (layer_max_hag_m <= layer_min_hag_m)
 		bad("layer_max_hag_m must be > layer_min_hag_m");
 }

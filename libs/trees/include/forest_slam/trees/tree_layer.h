@@ -58,8 +58,12 @@ struct TreeLayerStats
 {
 	uint64_t scans = 0;
 	uint64_t detections = 0;  ///< column detections run
-	double store_ms = 0;      ///< total time adding scans
-	double detect_ms = 0;     ///< total time detecting
+	/** Of detections: during the run (update()), and of those, columns
+	 * detected before (revisits grown by layer_redetect_growth). */
+	uint64_t detections_in_run = 0;
+	uint64_t redetections_in_run = 0;
+	double store_ms = 0;   ///< total time adding scans
+	double detect_ms = 0;  ///< total time detecting
 	/** Wall time of correct() (loop corrections: in the run and at its
 	 * end; two columns at a time), detections it triggered included. */
 	double correct_ms = 0;
@@ -448,11 +452,23 @@ class TreeLayer
 		SortedVoxels stem;
 		std::vector<map::TreeRecord> trees;
 		bool dirty = false;
+		bool detected = false;  ///< its stems detected at least once
+		/** Stem-band voxels (stem.size()) at the last detection. */
+		size_t detected_voxels = 0;
 		uint32_t version = 0;     ///< CorrectionSteps::version
 		double pile_density = 0;  ///< takePiledUpColumns' reference
 	};
 	/** Stem-band voxels per ground cell of a column. */
 	static double density(const Column& c);
+	/** Detected when the sensor leaves it (update()): changed, and never
+	 * detected or grown by layer_redetect_growth since. */
+	bool dueInRun(const Column& c) const
+	{
+		return detect_during_run_ && c.dirty &&
+		       (!c.detected || o_.layer_redetect_growth <= 1 ||
+		        double(c.stem.size()) >=
+		            o_.layer_redetect_growth * double(c.detected_voxels));
+	}
 
 	/** addScan's ground cells of one scan, kept between scans (cleared as
 	 * used): a square grid of layer_ground_cell_m cells around the sensor
