@@ -732,6 +732,72 @@ TEST(TreeLayer, ReleasedStemVoxelsKeepTheTreesAndTheirCorrection)
 	EXPECT_THROW(layer.addScan(scan(stems, s, rng), s), std::logic_error);
 }
 
+TEST(TreeLayer, ShownColumnsPublishMovedTreesUntilTheirVoxelsMove)
+{
+	// A live run: columns detected as the sensor leaves them; a loop
+	// correction moves only some columns' voxels, the others' trees are
+	// shown where the new estimate puts them.
+	const std::vector<Stem> stems = {{4, 5, 0.15}, {9, -6, 0.2}, {27, 6, 0.25}};
+	TreeLayer layer(TreeOptions{}, 20.0, /*detect_during_run=*/true);
+	map::CForestMap m;
+	std::mt19937 rng(13);
+	walk(layer, m, stems, -5, 75, 1.0, rng);
+	auto byX = [](std::vector<map::TreeRecord> v)
+	{
+		std::sort(v.begin(), v.end(),
+		          [](const auto& a, const auto& b) { return a.x < b.x; });
+		return v;
+	};
+	const auto before = byX(m.trees());
+	ASSERT_EQ(before.size(), stems.size());
+	const size_t detections = layer.stats().detections;
+	Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+	T.translation() = Eigen::Vector3d(0.4, -0.3, 0.05);
+	const ColumnKey a = layer.columnOf(4, 5), b = layer.columnOf(27, 6);
+	layer.showColumns({{a, T}}, m);
+	auto shown = byX(m.trees());
+	ASSERT_EQ(shown.size(), before.size());
+	for (size_t i = 0; i < shown.size(); i++)
+	{
+		const bool in = layer.columnOf(before[i].x, before[i].y) == a;
+		EXPECT_NEAR(shown[i].x, before[i].x + (in ? 0.4 : 0), 1e-9);
+		EXPECT_NEAR(shown[i].y, before[i].y + (in ? -0.3 : 0), 1e-9);
+		EXPECT_NEAR(shown[i].z_ground, before[i].z_ground + (in ? 0.05 : 0),
+		            1e-9);
+		EXPECT_EQ(shown[i].dbh_m, before[i].dbh_m);
+	}
+	// Showing is not detecting.
+	EXPECT_EQ(layer.stats().detections, detections);
+	// The correction then moves column a's voxels and trees by the same
+	// transform: the trees stay where they were shown (not moved twice),
+	// and column b's, shown unmoved, do not move.
+	const auto at_time = [&](uint32_t, double) { return T.cast<float>(); };
+	const auto of_column = [&](const ColumnKey&) { return T; };
+	auto steps = layer.beginCorrection(true, {a}, 1);
+	while (!layer.correctStep(steps, at_time, of_column, m, 1000000))
+	{
+	}
+	const auto after = byX(m.trees());
+	ASSERT_EQ(after.size(), before.size());
+	for (size_t i = 0; i < after.size(); i++)
+	{
+		EXPECT_NEAR(after[i].x, shown[i].x, 1e-6);
+		EXPECT_NEAR(after[i].y, shown[i].y, 1e-6);
+		EXPECT_NEAR(after[i].z_ground, shown[i].z_ground, 1e-6);
+	}
+	// Shown again from the new frame: b by its own correction, a (moved)
+	// by none.
+	Eigen::Isometry3d U = Eigen::Isometry3d::Identity();
+	U.translation() = Eigen::Vector3d(-0.2, 0, 0);
+	layer.showColumns({{a, Eigen::Isometry3d::Identity()}, {b, U}}, m);
+	const auto again = byX(m.trees());
+	for (size_t i = 0; i < again.size(); i++)
+	{
+		const bool in_b = layer.columnOf(before[i].x, before[i].y) == b;
+		EXPECT_NEAR(again[i].x, after[i].x + (in_b ? -0.2 : 0), 1e-6);
+	}
+}
+
 namespace
 {
 /** Two passes over the same stems, the first in a frame off by `d` (the

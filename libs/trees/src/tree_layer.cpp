@@ -1151,7 +1151,16 @@ void TreeLayer::publish(map::CForestMap& map) const
 	// estimated on either side: keep the better-confirmed one.
 	std::vector<map::TreeRecord> all;
 	for (const auto& [k, c] : cols_)
-		all.insert(all.end(), c.trees.begin(), c.trees.end());
+		for (map::TreeRecord t : c.trees)
+		{
+			if (c.shown.matrix() != Eigen::Matrix4d::Identity())
+			{
+				const Eigen::Vector3d q =
+				    c.shown * Eigen::Vector3d(t.x, t.y, t.z_ground);
+				t.x = q.x(), t.y = q.y(), t.z_ground = q.z();
+			}
+			all.push_back(t);
+		}
 	std::sort(all.begin(), all.end(),
 	          [](const map::TreeRecord& a, const map::TreeRecord& b) {
 		          return a.n_slices != b.n_slices ? a.n_slices > b.n_slices
@@ -1265,6 +1274,7 @@ bool TreeLayer::correctStep(
 				    T.cast<float>(), steps.in_run, steps.last_pass);
 				if (steps.in_run) c.version = steps.version;
 				moveGroundAndTrees(c, T);
+				c.shown = Eigen::Isometry3d::Identity();
 				stem.compact();
 				lock.lock();
 				stats_.stored_voxels += stem.size();
@@ -1334,6 +1344,18 @@ void TreeLayer::moveGroundAndTrees(Column& c, const Eigen::Isometry3d& T)
 		const Eigen::Vector3d q = T * Eigen::Vector3d(t.x, t.y, t.z_ground);
 		t.x = q.x(), t.y = q.y(), t.z_ground = q.z();
 	}
+}
+
+void TreeLayer::showColumns(
+    const std::vector<std::pair<ColumnKey, Eigen::Isometry3d>>& shown,
+    map::CForestMap& map)
+{
+	for (const auto& [k, T] : shown)
+	{
+		const auto it = cols_.find(k);
+		if (it != cols_.end()) it->second.shown = T;
+	}
+	publish(map);
 }
 
 void TreeLayer::releaseStemVoxels()

@@ -189,6 +189,15 @@ class TreeLayer
 	 * addScan() afterwards throws std::logic_error. */
 	void releaseStemVoxels();
 
+	/** A loop correction during a live run that moves only some columns'
+	 * voxels (correctStep): the trees of the columns in `shown` are
+	 * published moved by their transform (from the frame their voxels are
+	 * in to the newest estimate) until their voxels are moved. Writes the
+	 * tree layer into `map`. */
+	void showColumns(
+	    const std::vector<std::pair<ColumnKey, Eigen::Isometry3d>>& shown,
+	    map::CForestMap& map);
+
 	/** Loop correction: moves the stored points and the trees of one
 	 * column by `T` (map frame) and rewrites the tree layer of `map`. */
 	void transformColumn(const ColumnKey& k, const Eigen::Isometry3d& T,
@@ -455,6 +464,10 @@ class TreeLayer
 		bool detected = false;  ///< its stems detected at least once
 		/** Stem-band voxels (stem.size()) at the last detection. */
 		size_t detected_voxels = 0;
+		/** Where its trees are shown (published): their correction from
+		 * the frame its voxels (and trees) are in to the newest estimate,
+		 * until correct() moves them (showColumns). */
+		Eigen::Isometry3d shown = Eigen::Isometry3d::Identity();
 		uint32_t version = 0;     ///< CorrectionSteps::version
 		double pile_density = 0;  ///< takePiledUpColumns' reference
 	};
