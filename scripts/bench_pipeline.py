@@ -14,6 +14,9 @@ Scenarios (BUILD/bench-sim/<name>[-seed<N>], generated once, reused after):
   long      ini/sim-robot.ini with [motion] loops = LONG_LOOPS (default 11:
             about 58 min, 35,000 scans): the memory-growth run; on demand
             only (`--scenarios long`), never in `make test`.
+With --live the tree layer detects the stems during the run, as for live
+input ([trees] layer_detect_during_run = true; run folders <name>-live):
+the tree layer's updates then include those detections.
 Environment: MAX_SCANS=N maps only the first N scans of each scenario (the
 trees are then scored within 15 m of the mapped path only);
 MEMORY_PERIOD_S=S sets [pipeline] memory_report_period_s (the RSS curve,
@@ -26,7 +29,7 @@ each seed) the bench ends with each figure's band over them, min / median /
 max, and how many runs meet each target.
 
 Usage: scripts/bench_pipeline.py [--build DIR] [--scenarios handheld robot]
-           [--seeds N [N ...]] [--json FILE] [--out DIR]
+           [--seeds N [N ...]] [--live] [--json FILE] [--out DIR]
 """
 import argparse
 import json
@@ -110,11 +113,15 @@ def time_v(path):
             "cpu_s": num("User time (seconds)") + num("System time (seconds)")}
 
 
-def bench(build, name, seed, out_root, max_scans, long_loops, mem_period):
+def bench(build, name, seed, out_root, max_scans, long_loops, mem_period,
+          live=False):
     sim = scenario_dir(build, name, seed, long_loops)
-    out = os.path.join(out_root, name + ("" if seed == 1 else f"-seed{seed}"))
+    out = os.path.join(out_root, name + ("" if seed == 1 else f"-seed{seed}")
+                       + ("-live" if live else ""))
     os.makedirs(out, exist_ok=True)
     cfg = open(MAP_INI[name]).read()
+    if live:
+        cfg = set_ini_key(cfg, "trees", "layer_detect_during_run", "true")
     if max_scans:
         cfg = set_ini_key(cfg, "pipeline", "max_scans", max_scans)
     if mem_period:
@@ -161,10 +168,25 @@ def bench(build, name, seed, out_root, max_scans, long_loops, mem_period):
                  "trees": summ.get("trees", 0)}
     scans = summ["scans_mapped"]
     data_s = summ["data_seconds"]
+    tl = summ.get("tree_layer", {})
+    # Issue 7's speed target: the tree layer's updates (store, spilling,
+    # corrections, detections during the run) against the process CPU.
+    tree_layer = {
+        "update_share_of_cpu": tl.get("update_share_of_cpu"),
+        "update_cpu_s": tl.get("update_cpu_ms", 0) / 1e3,
+        "store_cpu_s": tl.get("store_cpu_ms", 0) / 1e3,
+        "correct_cpu_s": tl.get("correct_cpu_ms", 0) / 1e3,
+        "spill_cpu_s": tl.get("spill_cpu_ms", 0) / 1e3,
+        "end_of_run_detection_s": tl.get("finish_ms", 0) / 1e3,
+        "detections": tl.get("detections", 0),
+        "detections_in_run": tl.get("detections_in_run", 0),
+        "redetections_in_run": tl.get("redetections_in_run", 0),
+    } if tl else None
     mem = summ.get("memory", {})
     rts = traj.get("return_to_start", {}).get("estimate_vs_gt", {})
     return {
-        "scenario": name, "seed": seed, "sim_dir": sim, "out_dir": out,
+        "scenario": name, "seed": seed, "live": live, "sim_dir": sim,
+        "out_dir": out,
         "scans": scans, "data_s": data_s,
         "path_m": traj.get("vertical_drift", {}).get("distance_m"),
         "wall_s": wall, "cpu_s": tv["cpu_s"],
@@ -193,6 +215,7 @@ def bench(build, name, seed, out_root, max_scans, long_loops, mem_period):
         "return_to_start_m": rts.get("total_trans_m"),
         "return_to_start_deg": rts.get("angle_deg"),
         "trees": trees,
+        "tree_layer": tree_layer,
     }
 
 
@@ -202,7 +225,8 @@ def fmt(v, spec):
 
 
 def show(r):
-    print(f"== {r['scenario']} (seed {r['seed']}): {r['scans']} scans, "
+    print(f"== {r['scenario']} (seed {r['seed']}"
+          f"{', trees during the run' if r.get('live') else ''}): {r['scans']} scans, "
           f"{r['data_s']:.0f} s of data, {r['path_m'] or 0:.0f} m")
     print(f"  throughput  {r['scans_per_s']:.1f} scans/s over the mapping wall "
           f"({r['mapping_wall_s']:.1f} s), {r['scans'] / r['wall_s']:.1f} scans/s "
@@ -253,6 +277,16 @@ def show(r):
             print(f"              position error's structure: map scale "
                   f"{(sc - 1) * 100:+.3f} %; {100 * left:.1f} cm left after "
                   "a 2D similarity (the stems' own scatter)")
+    tl = r.get("tree_layer")
+    if tl and tl["update_share_of_cpu"] is not None:
+        print(f"  tree layer  updates {tl['update_cpu_s']:.1f} s of CPU, "
+              f"{tl['update_share_of_cpu']:.3f} of the process (target <= "
+              f"0.10): store {tl['store_cpu_s']:.1f}, corrections "
+              f"{tl['correct_cpu_s']:.1f}, spilling {tl['spill_cpu_s']:.1f} s, "
+              f"{tl['detections_in_run']} detections during the run "
+              f"({tl['redetections_in_run']} again); end-of-run detection "
+              f"{tl['end_of_run_detection_s']:.1f} s, "
+              f"{tl['detections'] - tl['detections_in_run']} columns")
     sys.stdout.flush()
 
 
@@ -281,6 +315,8 @@ BAND = [
      lambda v: abs(v) <= 0.3),
     ("position RMSE cm", tree_figure("position_rmse_m"), ".1f", 100,
      lambda v: v <= 5.0),
+    ("tree updates share", lambda r: (r.get("tree_layer") or {}).get(
+        "update_share_of_cpu"), ".3f", 1, lambda v: v <= 0.10),
     ("map scale %", scale_error, "+.3f", 100, None),
     ("after similarity cm", tree_figure("position_rmse_after_similarity_m"),
      ".1f", 100, None),
@@ -326,6 +362,8 @@ def main():
                     choices=sorted(SIM_INI))
     ap.add_argument("--seeds", "--seed", type=int, nargs="+", default=[1],
                     help="forest-sim seeds (worlds); several: a band")
+    ap.add_argument("--live", action="store_true",
+                    help="trees detected during the run, as for live input")
     ap.add_argument("--json", help="write all figures to this file")
     ap.add_argument("--out", help="run folders (default BUILD/bench-pipeline)")
     a = ap.parse_args()
@@ -344,7 +382,7 @@ def main():
     for s in a.scenarios:
         for seed in a.seeds:
             r = bench(a.build, s, seed, out_root, max_scans, long_loops,
-                      mem_period)
+                      mem_period, a.live)
             show(r)
             results.append(r)
     if len(a.seeds) > 1:
@@ -357,6 +395,7 @@ def main():
             json.dump({"machine": {"cores": os.cpu_count(),
                                    "load_at_start": os.getloadavg()[0]},
                        "max_scans": max_scans, "seeds": a.seeds,
+                       "live": a.live,
                        "results": results, "bands": bands}, f,
                       indent=1)
         os.replace(tmp, a.json)
