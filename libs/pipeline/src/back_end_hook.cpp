@@ -570,7 +570,8 @@ void MappingPipeline::mergeTreeLayerPasses(const core::Trajectory& now,
 	// the last merge had put them, up to a merge's worth of corrections
 	// behind the map. (Merging only the columns where the passes piled
 	// up, as for a recorded run, was tried: the 58-minute run's
-	// corrections fell by 4.5 s of CPU and its detections rose by more.)
+	// corrections fell by 4.5 s of CPU, its store, spilling and detections
+	// rose by 10 s: more passes left unmerged.)
 	if (tree_layer_->detectsDuringRun())
 	{
 		const auto xy = scanPositions(trajectory_);

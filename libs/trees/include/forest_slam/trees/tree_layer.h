@@ -189,11 +189,11 @@ class TreeLayer
 	 * addScan() afterwards throws std::logic_error. */
 	void releaseStemVoxels();
 
-	/** A loop correction during a live run that moves only some columns'
-	 * voxels (correctStep): the trees of the columns in `shown` are
-	 * published moved by their transform (from the frame their voxels are
-	 * in to the newest estimate) until their voxels are moved. Writes the
-	 * tree layer into `map`. */
+	/** A loop correction during a live run, which moves the columns'
+	 * voxels only at the next merge of the passes (correctStep): the trees
+	 * of the columns in `shown` are published moved by their transform
+	 * (from the frame their voxels are in to the newest estimate) until
+	 * their voxels are moved. Writes the tree layer into `map`. */
 	void showColumns(
 	    const std::vector<std::pair<ColumnKey, Eigen::Isometry3d>>& shown,
 	    map::CForestMap& map);
