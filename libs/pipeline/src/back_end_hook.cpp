@@ -563,6 +563,26 @@ void MappingPipeline::mergeTreeLayerPasses(const core::Trajectory& now,
 {
 	// The map worker is idle (flushed): its counts can be read.
 	if (!tree_layer_) return;
+	// Both the display and a merge need, per merge version, every scan's
+	// correction from where that version put it to `now`, and the scans'
+	// positions: made once here, when first needed.
+	decltype(TreeMerge::C) corrections;
+	const auto correctionsOf = [&](uint32_t v) -> const auto&
+	{
+		auto it = corrections.find(v);
+		if (it == corrections.end())
+			it = corrections
+			         .emplace(v,
+			                  scanCorrections(now, treeMapped(trajectory_, v)))
+			         .first;
+		return it->second;
+	};
+	std::vector<Eigen::Vector2d> xy;
+	const auto positions = [&]() -> const std::vector<Eigen::Vector2d>&
+	{
+		if (xy.empty()) xy = scanPositions(trajectory_);
+		return xy;
+	};
 	// Trees during the run: those found so far are shown where this
 	// estimate puts them, each column's by the correction (from the
 	// estimate its voxels are in) of the scan that passed nearest to its
@@ -574,20 +594,13 @@ void MappingPipeline::mergeTreeLayerPasses(const core::Trajectory& now,
 	// rose by 10 s: more passes left unmerged.)
 	if (tree_layer_->detectsDuringRun())
 	{
-		const auto xy = scanPositions(trajectory_);
-		std::map<uint32_t,
-		         std::vector<Eigen::Isometry3f,
-		                     Eigen::aligned_allocator<Eigen::Isometry3f>>>
-		    C;
 		std::vector<std::pair<trees::ColumnKey, Eigen::Isometry3d>> shown;
 		for (const auto& k : tree_layer_->columns())
 		{
-			const uint32_t v = tree_layer_->mergeVersion(k);
-			if (!C.count(v))
-				C.emplace(v, scanCorrections(now, treeMapped(trajectory_, v)));
-			shown.emplace_back(
-			    k, C.at(v)[scanNearestColumn(xy, k, tree_layer_->columnSize())]
-			           .cast<double>());
+			const auto& of_scan = correctionsOf(tree_layer_->mergeVersion(k));
+			const size_t n =
+			    scanNearestColumn(positions(), k, tree_layer_->columnSize());
+			shown.emplace_back(k, of_scan[n].cast<double>());
 		}
 		odometry_->runOnMap([this, shown = std::move(shown)](map::CForestMap& m)
 		                    { tree_layer_->showColumns(shown, m); });
@@ -634,13 +647,12 @@ void MappingPipeline::mergeTreeLayerPasses(const core::Trajectory& now,
 	for (const auto& k : keys.empty() ? tree_layer_->columns() : keys)
 	{
 		const uint32_t v = tree_layer_->mergeVersion(k);
-		if (!m->C.count(v))
-			m->C.emplace(v, scanCorrections(now, treeMapped(trajectory_, v)));
+		if (!m->C.count(v)) m->C.emplace(v, correctionsOf(v));
 	}
 	m->clock = core::TimeIndex(scanTimes(trajectory_));
 	// Ground cells and trees: the correction of the scan nearest to the
 	// column's centre (as in correctTreeLayer).
-	m->xy = scanPositions(trajectory_);
+	m->xy = positions();
 	tree_merge_ = m;
 	stepTreeMerge(kTreeMergeStepVoxels);
 	tree_merge_estimates_.push_back({X, C, now.size()});
