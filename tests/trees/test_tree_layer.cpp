@@ -237,17 +237,29 @@ TEST(TreeLayer, RevisitedColumnDetectedAgainInTheRunOnlyOnceItGrew)
 TEST(TreeLayer, SpilledColumnsReloadIdentically)
 {
 	// A column spilled again after a revisit is merged with its disk copy
-	// in chunks: the shipped chunk, and one of 5 voxels that crosses every
-	// chunk border many times; the results must not depend on it. And with
+	// in chunks, or appended to it as one more run when of a later pass
+	// (read back merged): the shipped chunk, and one of 5 voxels that
+	// crosses every chunk border many times; the results must not depend
+	// on it. And with
 	// voxels of 3 cm: a neighbour's margin read from disk into a copy once
 	// decoded the centroids' fixed-point offsets at the 2 cm scale.
 	const size_t shipped = TreeLayer::spill_merge_chunk_voxels;
-	for (const auto& [chunk, voxel_m] :
-	     {std::pair<size_t, double>{shipped, 0.02}, {5, 0.02}, {shipped, 0.03}})
+	const int shipped_runs = TreeLayer::spill_max_runs;
+	struct Case
+	{
+		size_t chunk;
+		double voxel_m;
+		int max_runs;
+	};
+	for (const auto& [chunk, voxel_m, max_runs] :
+	     {Case{shipped, 0.02, shipped_runs}, Case{5, 0.02, 2},
+	      Case{shipped, 0.03, 3}})
 	{
 		SCOPED_TRACE("merge chunk " + std::to_string(chunk) + ", voxel " +
-		             std::to_string(voxel_m));
+		             std::to_string(voxel_m) + ", runs " +
+		             std::to_string(max_runs));
 		TreeLayer::spill_merge_chunk_voxels = chunk;
+		TreeLayer::spill_max_runs = max_runs;
 
 		// Out along the strip and back: columns left behind go to disk, are
 		// read back on the way back, by a loop correction and for stemPoints;
@@ -284,6 +296,36 @@ TEST(TreeLayer, SpilledColumnsReloadIdentically)
 		EXPECT_EQ(mem.stats().spill_cpu_ms, 0.0);
 		EXPECT_LT(spill.memoryBytes(), mem.memoryBytes());
 		for (double x = 95; x >= -5; x -= 2.0) step(x);
+		EXPECT_EQ(
+		    mem.stats().spill_runs_appended + mem.stats().spill_runs_merged,
+		    0u);
+		// Out and back again, a new pass each way (loop corrections between
+		// them). Out first: the columns spilled on the first way out took
+		// points of the same pass on the way back, which may share voxels
+		// with those on disk: merged with them when left again.
+		const auto& st = spill.stats();
+		uint64_t merged_same_pass = 0;
+		for (int leg = 0; leg < 6; leg++)
+		{
+			mem.startPass();
+			spill.startPass();
+			for (int i = 0; i <= 50; i++)
+				step(leg % 2 == 0 ? -5.0 + 2 * i : 95.0 - 2 * i);
+			if (leg == 0)
+			{
+				merged_same_pass = st.spill_runs_merged;
+				EXPECT_GT(merged_same_pass, 0u);
+			}
+		}
+		// Then each revisit holds voxels of a later pass only: appended as a
+		// run of its own, until a column holds the most runs allowed (this
+		// walk leaves a column every other leg: one run merged, then up to
+		// three appended); one more merges them all.
+		EXPECT_GT(st.spill_runs_appended, 0u);
+		if (max_runs < 4)
+			EXPECT_GT(st.spill_runs_merged, merged_same_pass);
+		else
+			EXPECT_EQ(st.spill_runs_merged, merged_same_pass);
 		Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
 		T.translation() = Eigen::Vector3d(0.3, -0.1, 0);
 		mem.transformColumn(mem.columnOf(85, -5), T, m_mem);
@@ -291,9 +333,11 @@ TEST(TreeLayer, SpilledColumnsReloadIdentically)
 		mem.finish(m_mem);
 		spill.finish(m_spill);
 		// Columns written again once detected after the way back: the file
-		// holds about one copy of each (4 KB blocks), not one per write.
-		EXPECT_LT(spill.spillFileBytes(),
-		          spill.spilledBytes() + 4096 * (spill.columns().size() + 1))
+		// holds about one copy of each (4 KB blocks, up to four runs a
+		// column), not one per write.
+		EXPECT_LT(
+		    spill.spillFileBytes(),
+		    spill.spilledBytes() + 4 * 4096 * (spill.columns().size() + 1))
 		    << "spilled " << spill.spilledBytes();
 		// finish() spills each column once detected.
 		EXPECT_LT(spill.memoryBytes(), mem.memoryBytes() / 2);
@@ -322,6 +366,7 @@ TEST(TreeLayer, SpilledColumnsReloadIdentically)
 		EXPECT_EQ(mem.stats().stored_voxels, spill.stats().stored_voxels);
 	}
 	TreeLayer::spill_merge_chunk_voxels = shipped;
+	TreeLayer::spill_max_runs = shipped_runs;
 }
 
 // A recorded run ([trees] layer_detect_during_run = false): nothing is

@@ -551,6 +551,10 @@ std::vector<std::string> writeOutputs(const MappingPipeline& p,
 		       << (layer ? layer->stats().correct_cpu_ms : 0)
 		       << ", \"spill_cpu_ms\": "
 		       << (layer ? layer->stats().spill_cpu_ms : 0)
+		       << ", \"spill_runs_appended\": "
+		       << (layer ? layer->stats().spill_runs_appended : 0)
+		       << ", \"spill_runs_merged\": "
+		       << (layer ? layer->stats().spill_runs_merged : 0)
 		       << ", \"finish_ms\": " << s.tree_finish_ms
 		       << ", \"correct_ms\": "
 		       << (layer ? layer->stats().correct_ms : 0)

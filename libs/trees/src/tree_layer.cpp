@@ -124,6 +124,8 @@ namespace
 constexpr size_t kMaxPending = 300000;
 /** Read buffers kept by a detecting thread between reads (32 MB). */
 constexpr size_t kKeptReadVoxels = size_t(1) << 20;
+/** Of those, a later run's buffer kept by reload() (2 MB). */
+constexpr size_t kKeptRunVoxels = size_t(1) << 16;
 constexpr int64_t kKeyOffset = int64_t(1) << 20;  ///< 21 bits per axis
 /** `v`'s points into `m`: the mean offset and direction weighted by the
  * counts, each rounded once (the time is left to the caller). */
@@ -267,28 +269,130 @@ float TreeLayer::SortedVoxels::transformByTime(
 	return worst;
 }
 
-void TreeLayer::SortedVoxels::spill(core::SpillFile& f)
+namespace
+{
+/** Sorted by cell, pass, segment. */
+template <class V>
+bool voxelLess(const V& a, const V& b)
+{
+	return a.key != b.key     ? a.key < b.key
+	       : a.pass != b.pass ? a.pass < b.pass
+	                          : a.segment < b.segment;
+}
+/** Whether `a` and `b` are one voxel: same cell, pass and segment. */
+template <class V>
+bool sameVoxel(const V& a, const V& b)
+{
+	return a.key == b.key && a.pass == b.pass && a.segment == b.segment;
+}
+/** The lowest and highest pass of `v`'s voxels. */
+template <class V>
+std::pair<uint16_t, uint16_t> passRange(const std::vector<V>& v)
+{
+	uint16_t lo = 0xffff, hi = 0;
+	for (const auto& x : v)
+		lo = std::min(lo, x.pass), hi = std::max(hi, x.pass);
+	return {lo, hi};
+}
+}  // namespace
+
+TreeLayer::SortedVoxels::SpillWrite TreeLayer::SortedVoxels::spill(
+    core::SpillFile& f)
 {
 	compact();
 	std::vector<Voxel>().swap(pending_);  // its capacity too
+	SpillWrite wrote = SpillWrite::nothing;
 	if (spilled_)
 	{
-		if (!voxels_.empty()) spillMerged(f);  // new voxels: merged on disk
-		return;
+		if (voxels_.empty()) return wrote;
+		// New voxels all of passes after those on disk (the sensor came
+		// back after a loop correction: the usual revisit) share no voxel
+		// with the copy: appended as they are, the copy is not read.
+		const auto [lo, hi] = passRange(voxels_);
+		const int max_runs = std::clamp(spill_max_runs, 1, kMaxRuns);
+		if (n_runs_ == 0 || (n_runs_ < max_runs && lo > disk_max_pass_))
+		{
+			runs_[n_runs_++] = {f.appendVector(voxels_), voxels_.size()};
+			disk_count_ += voxels_.size();
+			disk_max_pass_ = std::max(disk_max_pass_, hi);
+			std::vector<Voxel>().swap(voxels_);
+			return SpillWrite::appended;
+		}
+		spillMerged(f);
+		return SpillWrite::merged;
 	}
 	if (changed_)
 	{
 		// The copy on disk is out of date: its space goes back.
-		const uint64_t old_offset = spill_offset_;
-		const size_t old_count = on_disk_ ? spill_count_ : 0;
-		spill_offset_ = f.appendVector(voxels_);
-		spill_count_ = voxels_.size();
-		if (old_count > 0) f.discard(old_offset, old_count * sizeof(Voxel));
-		on_disk_ = true;
+		discardRuns(f);
+		if (!voxels_.empty())
+		{
+			runs_[0] = {f.appendVector(voxels_), voxels_.size()};
+			n_runs_ = 1;
+			disk_count_ = voxels_.size();
+			disk_max_pass_ = passRange(voxels_).second;
+		}
+		wrote = SpillWrite::whole;
 	}
 	std::vector<Voxel>().swap(voxels_);
 	spilled_ = true;
 	changed_ = false;
+	return wrote;
+}
+
+void TreeLayer::SortedVoxels::discardRuns(core::SpillFile& f)
+{
+	for (int r = 0; r < n_runs_; r++)
+		if (runs_[r].count > 0)
+			f.discard(runs_[r].offset, runs_[r].count * sizeof(Voxel));
+	n_runs_ = 0;
+	disk_count_ = 0;
+	disk_max_pass_ = 0;
+}
+
+void TreeLayer::SortedVoxels::mergeSorted(std::vector<Voxel>& a,
+                                          const std::vector<Voxel>& b)
+{
+	// In place, from the back (a merged copy, allocated afresh on every
+	// merge, came back as page faults).
+	const size_t n_a = a.size();
+	a.resize(n_a + b.size());
+	Voxel* A = a.data();
+	const Voxel* B = b.data();
+	size_t i = n_a, j = b.size(), w = a.size();
+	while (j > 0)
+		if (i > 0 && voxelLess(B[j - 1], A[i - 1]))
+			A[--w] = A[--i];
+		else
+			A[--w] = B[--j];
+}
+
+struct TreeLayer::SortedVoxels::ReadBuffers
+{
+	SortedVoxels copy;
+	std::vector<Voxel> added, chunk, run;
+};
+
+void TreeLayer::SortedVoxels::readRuns(const core::SpillFile& f,
+                                       std::vector<Voxel>& out) const
+{
+	out.clear();
+	if (n_runs_ == 0) return;
+	// Room for all first, and the later runs through the thread's buffer:
+	// memory met for the first time costs a page fault per 4 KB, more
+	// than reading it from the file.
+	out.reserve(disk_count_);
+	f.readVector(runs_[0].offset, runs_[0].count, out);
+	if (n_runs_ == 1) return;
+	auto& run = readBuffers().run;
+	for (int r = 1; r < n_runs_; r++)
+	{
+		f.readVector(runs_[r].offset, runs_[r].count, run);
+		mergeSorted(out, run);
+	}
+	// A big run's buffer is not kept by the mapping thread (the end of the
+	// run's peak RSS).
+	if (run.capacity() > kKeptRunVoxels) std::vector<Voxel>().swap(run);
 }
 
 void TreeLayer::SortedVoxels::reload(const core::SpillFile& f)
@@ -297,17 +401,11 @@ void TreeLayer::SortedVoxels::reload(const core::SpillFile& f)
 	compact();
 	std::vector<Voxel> added;
 	added.swap(voxels_);
-	f.readVector(spill_offset_, spill_count_, voxels_);
+	readRuns(f, voxels_);  // the runs stay on disk: a copy until changed
 	spilled_ = false;
 	changed_ = false;
 	if (!added.empty()) mergeIn(added);  // sets changed_
 }
-
-struct TreeLayer::SortedVoxels::ReadBuffers
-{
-	SortedVoxels copy;
-	std::vector<Voxel> added, chunk;
-};
 
 TreeLayer::SortedVoxels::ReadBuffers& TreeLayer::SortedVoxels::readBuffers()
 {
@@ -321,12 +419,13 @@ void TreeLayer::SortedVoxels::freeReadBuffers()
 	b.copy = SortedVoxels();
 	std::vector<Voxel>().swap(b.added);
 	std::vector<Voxel>().swap(b.chunk);
+	std::vector<Voxel>().swap(b.run);
 }
 
 void TreeLayer::SortedVoxels::trimReadBuffers(size_t voxels)
 {
 	auto& b = readBuffers();
-	for (auto* v : {&b.copy.voxels_, &b.added})
+	for (auto* v : {&b.copy.voxels_, &b.added, &b.run})
 		if (v->capacity() > voxels) std::vector<Voxel>().swap(*v);
 }
 
@@ -357,27 +456,33 @@ void TreeLayer::SortedVoxels::loadInto(const core::SpillFile* f,
 	copy.setVoxelSize(voxel_m_);
 	copy.voxels_.clear();
 	copy.pending_.clear();
-	copy.spilled_ = copy.on_disk_ = false;
-	copy.spill_count_ = 0;
+	copy.spilled_ = false;
+	copy.n_runs_ = 0;
+	copy.disk_count_ = 0;
 	auto& added = readBuffers().added;
 	auto& chunk = readBuffers().chunk;
-	added.clear();  // in memory: all, or those added since spilled
-	for (const auto& v : voxels_)
-		if (inBox(v)) added.push_back(v);
-	for (const auto& v : pending_)
-		if (inBox(v)) added.push_back(v);
-	if (spilled_ && spill_count_ > 0)
+	auto& in_run = readBuffers().run;
+	// Sorted on disk: in each run, the stretch of keys with x cells in
+	// [x0, x1], found by bisection (a few dozen reads of one voxel), stays
+	// sorted. The first run straight into the copy, the others merged in
+	// (no voxel in two runs).
+	struct Stretch
 	{
-		// Sorted on disk: the run of keys with x cells in [x0, x1], found by
-		// bisection (a few dozen reads of one voxel), stays sorted.
+		size_t begin = 0, end = 0;
+	};
+	std::array<Stretch, kMaxRuns> stretch;
+	size_t left = 0;  // voxels of the stretches not read yet
+	for (int r = 0; spilled_ && r < n_runs_; r++)
+	{
+		const Run& run = runs_[r];
 		auto firstAtLeast = [&](uint64_t key)
 		{
-			size_t a = 0, b = spill_count_;
+			size_t a = 0, b = run.count;
 			Voxel v;
 			while (a < b)
 			{
 				const size_t mid = a + (b - a) / 2;
-				f->read(spill_offset_ + mid * sizeof(Voxel), &v, sizeof(Voxel));
+				f->read(run.offset + mid * sizeof(Voxel), &v, sizeof(Voxel));
 				if (v.key < key)
 					a = mid + 1;
 				else
@@ -385,43 +490,49 @@ void TreeLayer::SortedVoxels::loadInto(const core::SpillFile* f,
 			}
 			return a;
 		};
-		const size_t begin = firstAtLeast(x0 << 42);
-		const size_t end =
-		    x1 >= m ? spill_count_ : firstAtLeast((x1 + 1) << 42);
-		constexpr size_t kChunk = size_t(1) << 18;
-		for (size_t at = begin; at < end; at += kChunk)
+		stretch[r].begin = firstAtLeast(x0 << 42);
+		stretch[r].end = x1 >= m ? run.count : firstAtLeast((x1 + 1) << 42);
+		left += stretch[r].end - stretch[r].begin;
+	}
+	constexpr size_t kChunk = size_t(1) << 18;
+	bool reserved = left <= kChunk;
+	for (int r = 0; spilled_ && r < n_runs_; r++)
+	{
+		std::vector<Voxel>& to = r == 0 ? copy.voxels_ : in_run;
+		to.clear();
+		for (size_t at = stretch[r].begin; at < stretch[r].end; at += kChunk)
 		{
-			const size_t n = std::min(kChunk, end - at);
-			f->readVector(spill_offset_ + at * sizeof(Voxel), n, chunk);
+			const size_t n = std::min(kChunk, stretch[r].end - at);
+			f->readVector(runs_[r].offset + at * sizeof(Voxel), n, chunk);
+			const size_t kept_before = to.size();
 			for (const auto& v : chunk)
-				if (inBox(v)) copy.voxels_.push_back(v);
+				if (inBox(v)) to.push_back(v);
+			left -= n;
 			// Room for the rest at the first chunk's share in the box: a
 			// whole column's copy grown by doubling held 1.5-2 copies at
-			// once (the 60-minute run's peak RSS, during the detections).
-			if (at == begin && end - begin > kChunk)
+			// once (the 60-minute run's peak RSS, during the detections);
+			// the later runs are merged into it.
+			if (!reserved)
+			{
+				const size_t kept = to.size() - kept_before;
 				copy.voxels_.reserve(copy.voxels_.size() +
-				                     (end - at - n) * copy.voxels_.size() / n +
+				                     (r > 0 ? to.size() : 0) + left * kept / n +
 				                     n / 16);
+				reserved = true;
+			}
 		}
+		if (r > 0) mergeSorted(copy.voxels_, in_run);
 	}
+	added.clear();  // in memory: all, or those added since spilled
+	for (const auto& v : voxels_)
+		if (inBox(v)) added.push_back(v);
+	for (const auto& v : pending_)
+		if (inBox(v)) added.push_back(v);
 	if (!added.empty()) copy.mergeIn(added);
 }
 
 namespace
 {
-template <class V>
-bool voxelLess(const V& a, const V& b)
-{
-	return a.key != b.key     ? a.key < b.key
-	       : a.pass != b.pass ? a.pass < b.pass
-	                          : a.segment < b.segment;
-}
-/** Whether `a` and `b` are one voxel: same cell, pass and segment. */
-template <class V>
-bool sameVoxel(const V& a, const V& b)
-{
-	return a.key == b.key && a.pass == b.pass && a.segment == b.segment;
-}
 /** Sorts [a, e), voxels of one x cell, by voxelLess: a radix sort on the
  * y and z cells (least significant digit first, through `tmp`), then the
  * few voxels of one cell put in (pass, segment) order. Where the y and z
@@ -573,18 +684,9 @@ void TreeLayer::SortedVoxels::mergeIn(std::vector<Voxel>& add)
 	}
 	changed_ = true;
 	sortVoxels(add);
-	// In place, from the back (a merged copy of the column, allocated
-	// afresh on every merge, came back as page faults): equal voxels end up
-	// next to each other, the older first as in a forward merge, and are
-	// then summed in that order.
-	const size_t n_old = voxels_.size();
-	voxels_.resize(n_old + add.size());
-	size_t i = n_old, j = add.size(), w = voxels_.size();
-	while (j > 0)
-		if (i > 0 && voxelLess(add[j - 1], voxels_[i - 1]))
-			voxels_[--w] = voxels_[--i];
-		else
-			voxels_[--w] = add[--j];
+	// Equal voxels end up next to each other, the older first as in a
+	// forward merge, and are then summed in that order.
+	mergeSorted(voxels_, add);
 	size_t u = 0;
 	for (size_t k = 1; k < voxels_.size(); k++)
 		if (sameVoxel(voxels_[u], voxels_[k]))
@@ -601,14 +703,38 @@ void TreeLayer::SortedVoxels::spillMerged(core::SpillFile& f)
 	// memory held it twice over: on the 58-minute run, spikes of up to
 	// 700 MB for a second whenever the sensor left a revisited column. The same
 	// forward merge as mergeIn() (the result is the same, bit for bit)
-	// streams instead: the disk copy read and the merged set written in
+	// streams instead: the runs on disk read and the merged set written in
 	// chunks, into a region set aside for the largest possible result.
 	const size_t kChunk = std::max<size_t>(1, spill_merge_chunk_voxels);
-	const size_t upper = spill_count_ + voxels_.size();
+	const size_t upper = disk_count_ + voxels_.size();
 	const uint64_t out = f.reserve(upper * sizeof(Voxel));
-	std::vector<Voxel> in, buf;
+	struct Cursor
+	{
+		const Run* run = nullptr;  // null: the voxels in memory
+		std::vector<Voxel> in;
+		size_t i = 0, read = 0;
+	};
+	// The runs in their order, then the voxels in memory: an equal voxel
+	// is taken from the earlier source first (the older, as in mergeIn).
+	std::vector<Cursor> src(size_t(n_runs_) + 1);
+	for (int r = 0; r < n_runs_; r++) src[size_t(r)].run = &runs_[r];
+	const auto head = [&](Cursor& c) -> const Voxel*
+	{
+		if (!c.run) return c.i < voxels_.size() ? &voxels_[c.i] : nullptr;
+		if (c.i == c.in.size() && c.read < c.run->count)
+		{
+			const size_t n = std::min(kChunk, c.run->count - c.read);
+			c.in.resize(n);
+			f.read(c.run->offset + c.read * sizeof(Voxel), c.in.data(),
+			       n * sizeof(Voxel));
+			c.read += n;
+			c.i = 0;
+		}
+		return c.i < c.in.size() ? &c.in[c.i] : nullptr;
+	};
+	std::vector<Voxel> buf;
 	buf.reserve(kChunk + 1);
-	size_t read = 0, i = 0, j = 0, written = 0;
+	size_t written = 0;
 	const auto flush = [&](bool all)
 	{
 		// Unless at the end, the last voxel may still combine with the next.
@@ -628,31 +754,27 @@ void TreeLayer::SortedVoxels::spillMerged(core::SpillFile& f)
 	};
 	for (;;)
 	{
-		if (i == in.size() && read < spill_count_)
-		{
-			const size_t n = std::min(kChunk, spill_count_ - read);
-			in.resize(n);
-			f.read(spill_offset_ + read * sizeof(Voxel), in.data(),
-			       n * sizeof(Voxel));
-			read += n;
-			i = 0;
-		}
-		const bool old_left = i < in.size(), new_left = j < voxels_.size();
-		if (!old_left && !new_left) break;
-		if (!new_left || (old_left && !voxelLess(voxels_[j], in[i])))
-			push(in[i++]);
-		else
-			push(voxels_[j++]);
+		Cursor* best = nullptr;
+		const Voxel* best_v = nullptr;
+		for (auto& c : src)
+			if (const Voxel* v = head(c);
+			    v && (!best_v || voxelLess(*v, *best_v)))
+				best = &c, best_v = v;
+		if (!best) break;
+		push(*best_v);
+		best->i++;
 	}
 	flush(true);
-	if (on_disk_ && spill_count_ > 0)
-		f.discard(spill_offset_, spill_count_ * sizeof(Voxel));
+	const uint16_t max_pass =
+	    std::max(disk_max_pass_, passRange(voxels_).second);
+	discardRuns(f);
 	if (written < upper)
 		f.discard(out + written * sizeof(Voxel),
 		          (upper - written) * sizeof(Voxel));
-	spill_offset_ = out;
-	spill_count_ = written;
-	on_disk_ = true;
+	disk_max_pass_ = max_pass;
+	runs_[0] = {out, written};
+	n_runs_ = written > 0 ? 1 : 0;
+	disk_count_ = written;
 	std::vector<Voxel>().swap(voxels_);
 	spilled_ = true;
 	changed_ = false;
@@ -698,7 +820,22 @@ void TreeLayer::spillFar(const Eigen::Vector3d& sensor)
 		if (!dueInRun(c) && c.stem.sizeInMemory() > 0 &&
 		    distanceToSquare(sensor.x(), sensor.y(), k.x * column_m_,
 		                     k.y * column_m_, column_m_) > far)
-			c.stem.spill(*spill_);
+			spillColumn(c);
+}
+
+void TreeLayer::spillColumn(Column& c)
+{
+	switch (c.stem.spill(*spill_))
+	{
+		case SortedVoxels::SpillWrite::appended:
+			stats_.spill_runs_appended++;
+			break;
+		case SortedVoxels::SpillWrite::merged:
+			stats_.spill_runs_merged++;
+			break;
+		default:
+			break;
+	}
 }
 
 size_t TreeLayer::spilledBytes() const
@@ -984,7 +1121,7 @@ size_t TreeLayer::detectAllDirty(map::CForestMap& map)
 	{
 		giveTrees(due[i], std::move(found[i]), ms[i]);
 		// The end of the run holds no more than the columns being read.
-		if (spill_) cols_.at(due[i]).stem.spill(*spill_);
+		if (spill_) spillColumn(cols_.at(due[i]));
 	}
 	stats_.stored_voxels = 0;  // spilled and added voxels merged now
 	for (const auto& [k, c] : cols_) stats_.stored_voxels += c.stem.size();
@@ -1290,7 +1427,7 @@ bool TreeLayer::correctStep(
 				// finish() reads back the columns it detects and their
 				// neighbours only: the corrected whole does not stay in
 				// memory at once.
-				if (spill_) c.stem.spill(*spill_);
+				if (spill_) spillColumn(c);
 			}
 			catch (...)
 			{

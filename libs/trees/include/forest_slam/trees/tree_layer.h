@@ -23,6 +23,7 @@
 #include <Eigen/Geometry>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <functional>
@@ -82,6 +83,11 @@ struct TreeLayerStats
 	/** Of cpu_ms: writing the columns out of the sensor's reach to the
 	 * spill file (a revisited column is merged with its copy on disk). */
 	double spill_cpu_ms = 0;
+	/** Spills of a revisited column: its new voxels appended to the disk
+	 * copy as a run of their own (all of later passes), or merged with
+	 * the copy (some of a pass on disk, or the runs' limit reached). */
+	uint64_t spill_runs_appended = 0;
+	uint64_t spill_runs_merged = 0;
 	std::vector<double> detect_ms_each;  ///< per column detection
 	size_t stored_voxels = 0;            ///< stem-band voxels now
 	/** Stem-band voxels when releaseStemVoxels() freed them (0 before). */
@@ -95,6 +101,9 @@ class TreeLayer
 	 * merged with its copy on disk (memory of that merge: two chunks).
 	 * Tests set it small, to cross the chunk borders. */
 	inline static size_t spill_merge_chunk_voxels = size_t(1) << 18;
+	/** Runs a spilled column may hold on disk before they are merged into
+	 * one (at most 4; tests set fewer). */
+	inline static int spill_max_runs = 4;
 
 	/** `detect_during_run`: update() detects the columns the sensor has
 	 * left (trees during the run); false: only finish() detects, once per
@@ -266,7 +275,7 @@ class TreeLayer
 		 * since, which may share cells with them: an upper bound). */
 		size_t size() const
 		{
-			return (spilled_ ? spill_count_ : 0) + voxels_.size() +
+			return (spilled_ ? disk_count_ : 0) + voxels_.size() +
 			       pending_.size();
 		}
 		/** Calls f(centroid, mean viewing direction (not normalised), mean
@@ -316,15 +325,24 @@ class TreeLayer
 			std::vector<Voxel>().swap(pending_);
 			spilled_ = false;
 			changed_ = true;
-			on_disk_ = false;
-			spill_count_ = 0;
+			n_runs_ = 0;
+			disk_count_ = 0;
 		}
+		/** What spill() wrote. */
+		enum class SpillWrite
+		{
+			nothing,   ///< the copy on disk was up to date
+			whole,     ///< the set, as one run
+			appended,  ///< the voxels added since, as one more run
+			merged     ///< the runs and the voxels added since, as one run
+		};
 		/** Moves the voxels to `f` (compact() first); a set read back and
 		 * not changed since is not written again. Points added to a
 		 * spilled set do not read it back: they are voxelized apart in
-		 * memory and merged with the spilled ones on reload() or on the
-		 * next spill(). */
-		void spill(core::SpillFile& f);
+		 * memory and, on the next spill(), appended as a run of their own
+		 * when all are of passes after those on disk (no voxel in common,
+		 * so size() stays exact), else merged with the runs on disk. */
+		SpillWrite spill(core::SpillFile& f);
 		/** Reads spilled voxels back (merging those added since). */
 		void reload(const core::SpillFile& f);
 		/** Into `copy` (its buffers reused), the voxels whose cells are in
@@ -348,7 +366,7 @@ class TreeLayer
 		bool spilled() const { return spilled_; }
 		size_t spilledBytes() const
 		{
-			return spilled_ ? spill_count_ * sizeof(Voxel) : 0;
+			return spilled_ ? disk_count_ * sizeof(Voxel) : 0;
 		}
 		size_t memoryBytes() const
 		{
@@ -435,17 +453,39 @@ class TreeLayer
 		/** Points added since the last compact(), as one-point voxels. */
 		std::vector<Voxel> pending_;
 		bool spilled_ = false;
-		bool changed_ = true;   ///< since last written to the spill file
-		bool on_disk_ = false;  ///< spill_offset_/count_ hold a copy
-		uint64_t spill_offset_ = 0;
-		size_t spill_count_ = 0;
+		bool changed_ = true;  ///< since last written to the spill file
+		/** The copy on disk: sorted runs, each of passes after the
+		 * previous one's (none holds a voxel of another: the set is their
+		 * merge, equal keys in run order). A revisited column's new
+		 * voxels were merged with the copy and written whole at every
+		 * spill: a third of a 58-minute run's tree layer updates. More
+		 * runs make every read merge more; past kMaxRuns they are merged
+		 * into one. */
+		struct Run
+		{
+			uint64_t offset = 0;
+			size_t count = 0;
+		};
+		static constexpr int kMaxRuns = 4;
+		std::array<Run, kMaxRuns> runs_{};
+		int n_runs_ = 0;         ///< 0: no copy on disk
+		size_t disk_count_ = 0;  ///< voxels in the runs
+		uint16_t disk_max_pass_ = 0;
+		/** Forgets the copy on disk, giving its space back to `f`. */
+		void discardRuns(core::SpillFile& f);
+		/** Reads every run into `out` (merged: sorted). */
+		void readRuns(const core::SpillFile& f, std::vector<Voxel>& out) const;
+		/** Merges sorted `b` into sorted `a` (equal voxels: a's first,
+		 * not combined). */
+		static void mergeSorted(std::vector<Voxel>& a,
+		                        const std::vector<Voxel>& b);
 		uint64_t keyOf(const Eigen::Vector3f& p) const;
 		/** Sorts `add` and merges it into voxels_ (equal keys summed). */
 		void mergeIn(std::vector<Voxel>& add);
 		/** Sorts voxels_ in place and sums equal (key, pass, segment). */
 		void sortAndCombine();
 		/** spill() of a set already on disk with voxels added since: the
-		 * two merged into a new region of `f` chunk by chunk. */
+		 * runs and those merged into a new region of `f` chunk by chunk. */
 		void spillMerged(core::SpillFile& f);
 		Eigen::Vector3f centreOf(uint64_t key) const;
 		Eigen::Vector3f centroid(const Voxel& v) const
@@ -511,6 +551,8 @@ class TreeLayer
 	/** Spills the columns no scan from `sensor` can reach (detected ones
 	 * only, when detecting during the run). */
 	void spillFar(const Eigen::Vector3d& sensor);
+	/** c.stem to the spill file, counted in the stats. */
+	void spillColumn(Column& c);
 	/** Stem voxels of a column for reading: the column's own if in
 	 * memory, else a copy of those in the box [lo, hi) read from disk into
 	 * `copy` (not kept). */
