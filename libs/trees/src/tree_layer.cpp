@@ -124,8 +124,8 @@ namespace
 constexpr size_t kMaxPending = 300000;
 /** Read buffers kept by a detecting thread between reads (32 MB). */
 constexpr size_t kKeptReadVoxels = size_t(1) << 20;
-/** Of those, a later run's buffer kept by reload() (2 MB). */
-constexpr size_t kKeptRunVoxels = size_t(1) << 16;
+/** Voxels read from each run at a time when reload() merges runs (2 MB). */
+constexpr size_t kReadRunChunk = size_t(1) << 16;
 constexpr int64_t kKeyOffset = int64_t(1) << 20;  ///< 21 bits per axis
 /** `v`'s points into `m`: the mean offset and direction weighted by the
  * counts, each rounded once (the time is left to the caller). */
@@ -378,21 +378,19 @@ void TreeLayer::SortedVoxels::readRuns(const core::SpillFile& f,
 {
 	out.clear();
 	if (n_runs_ == 0) return;
-	// Room for all first, and the later runs through the thread's buffer:
-	// memory met for the first time costs a page fault per 4 KB, more
-	// than reading it from the file.
+	// Room for all first: memory met for the first time costs a page
+	// fault per 4 KB, more than reading it from the file.
 	out.reserve(disk_count_);
-	f.readVector(runs_[0].offset, runs_[0].count, out);
-	if (n_runs_ == 1) return;
-	auto& run = readBuffers().run;
-	for (int r = 1; r < n_runs_; r++)
+	if (n_runs_ == 1)
 	{
-		f.readVector(runs_[r].offset, runs_[r].count, run);
-		mergeSorted(out, run);
+		f.readVector(runs_[0].offset, runs_[0].count, out);
+		return;
 	}
-	// A big run's buffer is not kept by the mapping thread (the end of the
-	// run's peak RSS).
-	if (run.capacity() > kKeptRunVoxels) std::vector<Voxel>().swap(run);
+	// The runs merged as they are read, each voxel moved once (merging
+	// each later run into the ones before moved the first run's voxels
+	// once per run).
+	forEachMerged(f, kReadRunChunk, false,
+	              [&](const Voxel& v) { out.push_back(v); });
 }
 
 void TreeLayer::SortedVoxels::reload(const core::SpillFile& f)
@@ -696,6 +694,49 @@ void TreeLayer::SortedVoxels::mergeIn(std::vector<Voxel>& add)
 	voxels_.resize(u + 1);
 }
 
+template <class F>
+void TreeLayer::SortedVoxels::forEachMerged(const core::SpillFile& f,
+                                            size_t chunk, bool with_memory,
+                                            F&& take) const
+{
+	struct Cursor
+	{
+		const Run* run = nullptr;  // null: the voxels in memory
+		std::vector<Voxel> in;
+		size_t i = 0, read = 0;
+	};
+	// The runs in their order, then the voxels in memory: an equal voxel
+	// is taken from the earlier source first (the older, as in mergeIn).
+	std::vector<Cursor> src(size_t(n_runs_) + (with_memory ? 1 : 0));
+	for (int r = 0; r < n_runs_; r++) src[size_t(r)].run = &runs_[r];
+	const auto head = [&](Cursor& c) -> const Voxel*
+	{
+		if (!c.run) return c.i < voxels_.size() ? &voxels_[c.i] : nullptr;
+		if (c.i == c.in.size() && c.read < c.run->count)
+		{
+			const size_t n = std::min(chunk, c.run->count - c.read);
+			c.in.resize(n);
+			f.read(c.run->offset + c.read * sizeof(Voxel), c.in.data(),
+			       n * sizeof(Voxel));
+			c.read += n;
+			c.i = 0;
+		}
+		return c.i < c.in.size() ? &c.in[c.i] : nullptr;
+	};
+	for (;;)
+	{
+		Cursor* best = nullptr;
+		const Voxel* best_v = nullptr;
+		for (auto& c : src)
+			if (const Voxel* v = head(c);
+			    v && (!best_v || voxelLess(*v, *best_v)))
+				best = &c, best_v = v;
+		if (!best) break;
+		take(*best_v);
+		best->i++;
+	}
+}
+
 void TreeLayer::SortedVoxels::spillMerged(core::SpillFile& f)
 {
 	// voxels_ (sorted and combined: compact() ran) holds what was added
@@ -708,30 +749,6 @@ void TreeLayer::SortedVoxels::spillMerged(core::SpillFile& f)
 	const size_t kChunk = std::max<size_t>(1, spill_merge_chunk_voxels);
 	const size_t upper = disk_count_ + voxels_.size();
 	const uint64_t out = f.reserve(upper * sizeof(Voxel));
-	struct Cursor
-	{
-		const Run* run = nullptr;  // null: the voxels in memory
-		std::vector<Voxel> in;
-		size_t i = 0, read = 0;
-	};
-	// The runs in their order, then the voxels in memory: an equal voxel
-	// is taken from the earlier source first (the older, as in mergeIn).
-	std::vector<Cursor> src(size_t(n_runs_) + 1);
-	for (int r = 0; r < n_runs_; r++) src[size_t(r)].run = &runs_[r];
-	const auto head = [&](Cursor& c) -> const Voxel*
-	{
-		if (!c.run) return c.i < voxels_.size() ? &voxels_[c.i] : nullptr;
-		if (c.i == c.in.size() && c.read < c.run->count)
-		{
-			const size_t n = std::min(kChunk, c.run->count - c.read);
-			c.in.resize(n);
-			f.read(c.run->offset + c.read * sizeof(Voxel), c.in.data(),
-			       n * sizeof(Voxel));
-			c.read += n;
-			c.i = 0;
-		}
-		return c.i < c.in.size() ? &c.in[c.i] : nullptr;
-	};
 	std::vector<Voxel> buf;
 	buf.reserve(kChunk + 1);
 	size_t written = 0;
@@ -752,18 +769,7 @@ void TreeLayer::SortedVoxels::spillMerged(core::SpillFile& f)
 		else if (buf.push_back(v); buf.size() > kChunk)
 			flush(false);
 	};
-	for (;;)
-	{
-		Cursor* best = nullptr;
-		const Voxel* best_v = nullptr;
-		for (auto& c : src)
-			if (const Voxel* v = head(c);
-			    v && (!best_v || voxelLess(*v, *best_v)))
-				best = &c, best_v = v;
-		if (!best) break;
-		push(*best_v);
-		best->i++;
-	}
+	forEachMerged(f, kChunk, true, push);
 	flush(true);
 	const uint16_t max_pass =
 	    std::max(disk_max_pass_, passRange(voxels_).second);

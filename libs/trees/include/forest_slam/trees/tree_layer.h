@@ -473,6 +473,12 @@ class TreeLayer
 		uint16_t disk_max_pass_ = 0;
 		/** Forgets the copy on disk, giving its space back to `f`. */
 		void discardRuns(core::SpillFile& f);
+		/** Calls take(voxel) for the voxels of the runs, and after them
+		 * on ties those in memory if `with_memory`, in merged order,
+		 * reading `chunk` voxels of a run at a time. */
+		template <class F>
+		void forEachMerged(const core::SpillFile& f, size_t chunk,
+		                   bool with_memory, F&& take) const;
 		/** Reads every run into `out` (merged: sorted). */
 		void readRuns(const core::SpillFile& f, std::vector<Voxel>& out) const;
 		/** Merges sorted `b` into sorted `a` (equal voxels: a's first,
