@@ -318,7 +318,7 @@ TreeLayer::SortedVoxels::SpillWrite TreeLayer::SortedVoxels::spill(
 			std::vector<Voxel>().swap(voxels_);
 			return SpillWrite::appended;
 		}
-		spillMerged(f);
+		spillMerged(f, hi);
 		return SpillWrite::merged;
 	}
 	if (changed_)
@@ -737,7 +737,8 @@ void TreeLayer::SortedVoxels::forEachMerged(const core::SpillFile& f,
 	}
 }
 
-void TreeLayer::SortedVoxels::spillMerged(core::SpillFile& f)
+void TreeLayer::SortedVoxels::spillMerged(core::SpillFile& f,
+                                          uint16_t new_max_pass)
 {
 	// voxels_ (sorted and combined: compact() ran) holds what was added
 	// since the set went to disk. Reading the set back whole and merging in
@@ -771,8 +772,7 @@ void TreeLayer::SortedVoxels::spillMerged(core::SpillFile& f)
 	};
 	forEachMerged(f, kChunk, true, push);
 	flush(true);
-	const uint16_t max_pass =
-	    std::max(disk_max_pass_, passRange(voxels_).second);
+	const uint16_t max_pass = std::max(disk_max_pass_, new_max_pass);
 	discardRuns(f);
 	if (written < upper)
 		f.discard(out + written * sizeof(Voxel),

@@ -490,9 +490,10 @@ class TreeLayer
 		void mergeIn(std::vector<Voxel>& add);
 		/** Sorts voxels_ in place and sums equal (key, pass, segment). */
 		void sortAndCombine();
-		/** spill() of a set already on disk with voxels added since: the
-		 * runs and those merged into a new region of `f` chunk by chunk. */
-		void spillMerged(core::SpillFile& f);
+		/** spill() of a set already on disk with voxels added since (of
+		 * passes up to `new_max_pass`): the runs and those merged into a
+		 * new region of `f` chunk by chunk. */
+		void spillMerged(core::SpillFile& f, uint16_t new_max_pass);
 		Eigen::Vector3f centreOf(uint64_t key) const;
 		Eigen::Vector3f centroid(const Voxel& v) const
 		{
