@@ -78,8 +78,13 @@ namespace
 /** Jobs queued on the CForestMap thread at most: a scan's insertion is a
  * few milliseconds, a tree-layer column detection (runOnMap) hundreds, and
  * the queue absorbs one without stopping the odometry (a job holds one
- * scan's points, ~0.3 MB). */
-constexpr size_t kMapQueue = 48;
+ * scan's points, ~0.3 MB; a scan queues two jobs, its insertion and the
+ * tree layer's). The thread runs at the lowest priority, in the gaps the
+ * odometry leaves: with 48 jobs the odometry waited for room 11 s of the
+ * robot run's 170 s, often with one core idle; with 128, 1.5 s (and the
+ * back-end's flushes wait a little longer; doc/performance.md, forty-
+ * seventh session). */
+constexpr size_t kMapQueue = 128;
 }  // namespace
 
 LidarOdometry::LidarOdometry(const OdometryConfig& cfg, map::CForestMap& map)

@@ -23,6 +23,12 @@ double threadCpuSeconds()
 	clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
 	return ts.tv_sec + 1e-9 * ts.tv_nsec;
 }
+
+/** Scans queued for the collector at most (each a copy of the scan and its
+ * deskewed points, ~1.3 MB for a VLP-16). The collector runs at the lowest
+ * priority; with 2 the odometry waited for it 7.6 s of the robot run's
+ * 170 s (doc/performance.md, forty-seventh session). */
+constexpr size_t kCollectorQueue = 32;
 }  // namespace
 
 RunCollector::RunCollector(const OutputOptions& o, double min_range_m,
@@ -33,7 +39,7 @@ RunCollector::RunCollector(const OutputOptions& o, double min_range_m,
       dense_(o.dense_voxel_m, o.spill_to_disk ? o.dense_tile_m : 0),
       collect_dense_(o.needsDenseMap()),
       collect_keyframes_(o.needsKeyframeClouds()),
-      worker_(2, "fs-collector", true)
+      worker_(kCollectorQueue, "fs-collector", true)
 {
 	// At once, so a bad spill_dir stops the run before it starts.
 	if (o.spill_to_disk) spill();
