@@ -79,12 +79,12 @@ namespace
  * few milliseconds, a tree-layer column detection (runOnMap) hundreds, and
  * the queue absorbs one without stopping the odometry (a job holds one
  * scan's points, ~0.3 MB; a scan queues two jobs, its insertion and the
- * tree layer's). The thread runs at the lowest priority, in the gaps the
- * odometry leaves: with 48 jobs the odometry waited for room 11 s of the
- * robot run's 170 s, often with one core idle; with 256, 1.5 s (and the
- * back-end's flushes waited 3.6 s instead of 0.1). 128 ran as fast in
- * pairs, with half the memory held back at worst (doc/performance.md,
- * forty-seventh session). */
+ * tree layer's). The thread runs at a low priority (nice 19 for a recorded
+ * rawlog), in the gaps the odometry leaves: with 48 jobs the odometry waited
+ * for room 11 s of the robot run's 170 s, often with one core idle; with
+ * 256, 1.5 s (and the back-end's flushes waited 3.6 s instead of 0.1). 128 ran
+ * as fast in pairs, with half the memory held back at worst
+ * (doc/performance.md, forty-seventh session). */
 constexpr size_t kMapQueue = 128;
 }  // namespace
 

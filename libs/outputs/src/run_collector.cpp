@@ -25,9 +25,10 @@ double threadCpuSeconds()
 }
 
 /** Scans queued for the collector at most (each a copy of the scan and its
- * deskewed points, ~1.3 MB for a VLP-16). The collector runs at the lowest
- * priority; with 2 the odometry waited for it 7.6 s of the robot run's
- * 170 s (doc/performance.md, forty-seventh session). */
+ * deskewed points, ~1.3 MB for a VLP-16). The collector runs at a low
+ * priority (nice 19 for a recorded rawlog); with 2 the odometry waited for
+ * it 7.6 s of the robot run's 170 s (doc/performance.md, forty-seventh
+ * session). */
 constexpr size_t kCollectorQueue = 32;
 }  // namespace
 

@@ -17,9 +17,9 @@ namespace forest_slam::odometry
 class MapInserter
 {
    public:
-	/** max_pending: scans waiting at most (the producer blocks beyond it, so
-	 * memory stays bounded when the map falls behind). 0 inserts on the
-	 * caller's thread (no worker). */
+	/** max_pending: jobs waiting at most, scans and run() jobs alike (the
+	 * producer blocks beyond it, so memory stays bounded when the map falls
+	 * behind). 0 inserts on the caller's thread (no worker). */
 	MapInserter(map::CForestMap& map, size_t max_pending);
 	~MapInserter();
 	MapInserter(const MapInserter&) = delete;
