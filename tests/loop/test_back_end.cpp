@@ -122,6 +122,32 @@ TEST(BackEnd, ClosesADriftingLoopDeterministically)
 		EXPECT_TRUE(X[i].isApprox(Y[i], 1e-12)) << "keyframe " << i;
 }
 
+TEST(BackEnd, VerificationThreadsDoNotChangeTheClosures)
+{
+	// The target's normals and the uniqueness re-runs on one thread or
+	// three: the same closures (each re-run judged in order) and poses.
+	const auto stems = makeStems(5, 40);
+	const Walk w = circle(6, 0.2);
+	LoopOptions one = options(), three = options();
+	one.verify_threads = 1;
+	three.verify_threads = 3;
+	std::vector<Closure> a, b;
+	const Poses X = run(w, stems, one, true, &a);
+	const Poses Y = run(w, stems, three, true, &b);
+	ASSERT_EQ(a.size(), b.size());
+	ASSERT_FALSE(a.empty());
+	for (size_t i = 0; i < a.size(); i++)
+	{
+		EXPECT_EQ(a[i].accepted, b[i].accepted) << i;
+		EXPECT_EQ(a[i].reason, b[i].reason) << i;
+		EXPECT_EQ(a[i].overlap, b[i].overlap) << i;
+		EXPECT_TRUE(a[i].T.isApprox(b[i].T, 0)) << i;
+	}
+	ASSERT_EQ(X.size(), Y.size());
+	for (size_t i = 0; i < X.size(); i++)
+		EXPECT_TRUE(X[i].isApprox(Y[i], 0)) << "keyframe " << i;
+}
+
 TEST(BackEnd, SpilledKeyframeCloudsGiveTheSameClosures)
 {
 	// Old keyframe clouds on disk, read back for the candidates: the same

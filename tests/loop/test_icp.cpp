@@ -60,6 +60,24 @@ TEST_F(TwoViews, AWellSeededIcpSkipsTheShrinkingGates)
 	EXPECT_LT((truth.inverse() * off.T).translation().norm(), 0.03);
 }
 
+TEST(Icp, NormalsAreTheSameOnAnyNumberOfThreads)
+{
+	// Each point's normal is its own: shared out among threads, the cloud
+	// (points, their order, the normals) is bit for bit the serial one.
+	const auto stems = makeStems(4, 40);
+	const auto pts = voxelFilter(
+	    sampleView(stems, poseXYZYaw(0, 0, 1.5, 0), 20, 0.1, 3), 0.25, 40);
+	const NormalCloud one = withNormals(pts, 10, 0.3, 1);
+	ASSERT_GT(one.points.size(), 1000u);
+	ASSERT_LT(one.points.size(), pts.size());  // some dropped (not planar)
+	for (int threads : {2, 3})
+	{
+		const NormalCloud many = withNormals(pts, 10, 0.3, threads);
+		EXPECT_TRUE(many.points == one.points) << threads << " threads";
+		EXPECT_TRUE(many.normals == one.normals) << threads << " threads";
+	}
+}
+
 TEST(Icp, VoxelFilterKeepsEachVoxelsCentroidWithinRange)
 {
 	std::vector<Eigen::Vector3f> p{{0.01f, 0.01f, 0.01f},

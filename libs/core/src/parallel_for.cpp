@@ -8,6 +8,7 @@
 #include <exception>
 #include <memory>
 #include <mutex>
+#include <string>
 #include <thread>
 #include <vector>
 
@@ -25,11 +26,20 @@ class HelperPool
    public:
 	explicit HelperPool(int helpers)
 	{
+		// Named after their owner (the mapping thread's: fs-helper), so
+		// that top -H and run_summary.json tell whose loops they run; they
+		// inherit its priority (Linux: a thread starts at its creator's
+		// nice value).
+		char owner[16] = {};
+		pthread_getname_np(pthread_self(), owner, sizeof owner);
+		std::string name = "fs-helper";
+		if (std::string(owner).rfind("fs-", 0) == 0)
+			name = (std::string(owner) + "-h").substr(0, 15);
 		for (int i = 0; i < helpers; i++)
 			threads_.emplace_back(
-			    [this, i]
+			    [this, i, name]
 			    {
-				    pthread_setname_np(pthread_self(), "fs-helper");
+				    pthread_setname_np(pthread_self(), name.c_str());
 				    loop(i + 1);
 			    });
 	}

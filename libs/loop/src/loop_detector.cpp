@@ -1,3 +1,4 @@
+#include <forest_slam/core/parallel_for.h>
 #include <forest_slam/loop/loop_detector.h>
 
 #include <algorithm>
@@ -198,7 +199,8 @@ Closure verifyClosure(const std::vector<Keyframe>& kfs, const Poses& poses,
 	const size_t s_first = to >= m ? to - m : 0;
 	// Both submaps from the same resolution: the target with normals.
 	IcpTarget target(withNormals(
-	    submapCloud(kfs, poses, t_first, t_last, from, o.cloud_voxel_m)));
+	    submapCloud(kfs, poses, t_first, t_last, from, o.cloud_voxel_m), 10,
+	    0.3, o.verify_threads));
 	auto source = submapCloud(kfs, poses, std::max(s_first, t_last + 1), to, to,
 	                          o.cloud_voxel_m);
 	if (target.size() < 200 || source.size() < 200)
@@ -310,19 +312,29 @@ Closure verifyClosure(const std::vector<Keyframe>& kfs, const Poses& poses,
 	// degrees about the vertical (rows of a plantation look alike from
 	// several directions; its yaw is not checked by the estimate).
 	const int guesses = seed ? 7 : 4;
-	for (int k = 0; k < guesses; k++)
+	// The re-runs are independent: shared out among the verifying threads,
+	// then judged in order, as one after the other would (every guess is
+	// run, also after an ambiguous one: a rejected candidate's few).
+	std::vector<IcpResult> alts(static_cast<size_t>(guesses));
+	core::parallelFor(
+	    alts.size(), o.verify_threads, 1,
+	    [&](size_t k)
+	    {
+		    const double a = static_cast<double>(k) * M_PI / 2;
+		    Eigen::Isometry3d g = r.T;
+		    if (k < 4)
+			    g.translation() +=
+			        shift * Eigen::Vector3d(std::cos(a), std::sin(a), 0);
+		    else
+			    g.linear() =
+			        r.T.linear() * L_to.transpose() *
+			        Eigen::AngleAxisd(static_cast<double>(k - 3) * M_PI / 2,
+			                          Eigen::Vector3d::UnitZ()) *
+			        L_to;
+		    alts[k] = target.align(half, g, io);
+	    });
+	for (const IcpResult& alt : alts)
 	{
-		const double a = k * M_PI / 2;
-		Eigen::Isometry3d g = r.T;
-		if (k < 4)
-			g.translation() +=
-			    shift * Eigen::Vector3d(std::cos(a), std::sin(a), 0);
-		else
-			g.linear() = r.T.linear() * L_to.transpose() *
-			             Eigen::AngleAxisd((k - 3) * M_PI / 2,
-			                               Eigen::Vector3d::UnitZ()) *
-			             L_to;
-		const IcpResult alt = target.align(half, g, io);
 		if (!alt.converged) continue;
 		const auto dd = difference(r.T, alt.T);
 		const bool other =

@@ -35,6 +35,7 @@ namespace forest_slam::loop
 	X(max_rmse_m)                \
 	X(min_information_ratio)     \
 	X(consistency_chi2)          \
+	X(verify_threads)            \
 	X(odom_sigma_t_m)            \
 	X(odom_sigma_t_per_m)        \
 	X(odom_sigma_r_deg)          \
@@ -102,6 +103,10 @@ void LoopOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 		    "max_candidates, detect_every_keyframes, icp_iterations and "
 		    "gnss_min_quality must be >= 1; closure_spacing_keyframes, "
 		    "submap_keyframes and latency_keyframes >= 0");
+	if (verify_threads < 1 || verify_threads > 64)
+		throw core::ConfigError(where +
+		                        "verify_threads must be in [1, 64], got " +
+		                        std::to_string(verify_threads));
 	if (icp_max_points != 0 && icp_max_points < 200)
 		throw core::ConfigError(where +
 		                        "icp_max_points must be 0 (all) or >= 200");

@@ -23,8 +23,10 @@ struct NormalCloud
 /** Normals from the k nearest neighbours (PCA); points whose neighbourhood
  * is not planar enough (smallest / middle eigenvalue above `max_flatness`:
  * foliage, whose hits change with the view), a line (a single ring) or too
- * sparse are dropped. */
+ * sparse are dropped. Points in their input order; the same for any
+ * number of threads (the caller's and threads-1 helpers, core::
+ * parallelRanges). */
 NormalCloud withNormals(const std::vector<Eigen::Vector3f>& pts, int k = 10,
-                        double max_flatness = 0.3);
+                        double max_flatness = 0.3, int threads = 1);
 
 }  // namespace forest_slam::loop

@@ -61,6 +61,10 @@ struct LoopOptions : public mrpt::config::CLoadableOptions
 	/** Mahalanobis gate (chi-square, 6 dof) of the closure's correction
 	 * against the drift the odometry can have accumulated. */
 	double consistency_chi2 = 16.8;
+	/** Threads verifying a candidate (the back-end's own and threads-1
+	 * helpers, at its priority): the target's normals and the uniqueness
+	 * re-runs are shared out; the closures do not depend on it. */
+	int verify_threads = 2;
 	// Pose graph noise.
 	double odom_sigma_t_m = 0.01;         ///< per edge
 	double odom_sigma_t_per_m = 0.02;     ///< per metre of the edge
