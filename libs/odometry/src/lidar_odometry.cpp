@@ -608,6 +608,9 @@ void LidarOdometry::applyCorrection(const Eigen::Isometry3d& C)
 {
 	last_pose_ = C * last_pose_;
 	initial_pose_ = C * initial_pose_;
+	// The accelerometer's velocity is in the map frame: it turns with it
+	// (velocity_ is relative to the last pose and needs nothing).
+	velocity_map_ = C.linear() * velocity_map_;
 	for (auto& q : track_)
 	{
 		q.p = C * q.p;

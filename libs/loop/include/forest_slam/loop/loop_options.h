@@ -73,8 +73,11 @@ struct LoopOptions : public mrpt::config::CLoadableOptions
 	double loop_sigma_t_m = 0.03;
 	double loop_sigma_r_deg = 0.15;
 	/** Results of keyframe k are applied when keyframe k + this is made:
-	 * the worker runs meanwhile, and the run is deterministic. */
-	int latency_keyframes = 3;
+	 * the worker runs meanwhile, and the run is deterministic. With 3 the
+	 * mapping thread waited 13-19 s of the robot run's ~165 for the
+	 * worker, which runs at a low priority (doc/performance.md,
+	 * forty-eighth session). */
+	int latency_keyframes = 6;
 	// GNSS position factors.
 	bool gnss_enabled = false;
 	int gnss_min_quality = 1;

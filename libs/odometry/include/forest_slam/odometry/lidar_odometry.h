@@ -187,8 +187,10 @@ class LidarOdometry
 
 	/** Back-end hook: the map frame estimate moved by `C` (a loop closure or
 	 * GNSS correction, p' = C p). The last pose and the local map follow,
-	 * so that drift does not re-accumulate; the velocity is relative and
-	 * unchanged. The CForestMap and the ground lattice are not moved. */
+	 * so that drift does not re-accumulate, and the map-frame velocity of
+	 * the accelerometer's prediction turns with them (the relative
+	 * velocity needs nothing). The CForestMap and the ground lattice are
+	 * not moved. */
 	void applyCorrection(const Eigen::Isometry3d& C);
 
 	/** Returns when every processed scan is in the CForestMap (insertion
