@@ -9,6 +9,7 @@
 #include <forest_slam/loop/keyframe_cloud.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <iostream>
 #include <stdexcept>
 #include <string>
@@ -112,6 +113,14 @@ TEST(BackEnd, ClosesADriftingLoopDeterministically)
 		EXPECT_LT(e.translation().norm(), 0.05);
 	}
 	EXPECT_GE(accepted, 1u);
+	// Each closure's error is its disagreement with the estimate when it
+	// was verified: the first one's is the drift round the loop.
+	const auto first =
+	    std::find_if(closures.begin(), closures.end(),
+	                 [](const Closure& c) { return c.accepted; });
+	ASSERT_NE(first, closures.end());
+	EXPECT_GT(first->error_m, 0.3);
+	EXPECT_GT(first->error_deg, 2.0);
 	const double after =
 	    (X.back().translation() - w.truth.back().translation()).norm();
 	EXPECT_LT(after, 0.1) << "before " << before;

@@ -230,6 +230,11 @@ Closure verifyClosure(const std::vector<Keyframe>& kfs, const Poses& poses,
 	c.T = r.T;
 	c.overlap = r.overlap;
 	c.rmse_m = r.rmse_m;
+	{
+		const auto d = difference(estimate, r.T);
+		c.error_m = d.head<3>().norm();
+		c.error_deg = d.tail<3>().norm() * 180 / M_PI;
+	}
 	if (!r.converged)
 	{
 		c.reason = "not_converged";

@@ -183,7 +183,7 @@ void writeLoopClosures(const loop::BackEnd& b, const std::string& path)
 	    {
 		    os << "from_t_s,to_t_s,accepted,reason,overlap,rmse_m,chi2,"
 		          "travelled_m,x,y,z,qx,qy,qz,qw,candidate,descriptor_"
-		          "distance\n";
+		          "distance,error_m,error_deg\n";
 		    os << std::fixed;
 		    os.precision(6);
 		    for (const auto& c : b.closures())
@@ -197,7 +197,8 @@ void writeLoopClosures(const loop::BackEnd& b, const std::string& path)
 			       << ',' << q.x() << ',' << q.y() << ',' << q.z() << ','
 			       << q.w() << ','
 			       << (c.descriptor ? "descriptor" : "geometric") << ','
-			       << (c.descriptor ? c.descriptor_distance : 0.0) << '\n';
+			       << (c.descriptor ? c.descriptor_distance : 0.0) << ','
+			       << c.error_m << ',' << c.error_deg << '\n';
 		    }
 	    });
 }

@@ -48,6 +48,10 @@ struct Closure
 	size_t to = 0;    ///< the current keyframe
 	Eigen::Isometry3d T = Eigen::Isometry3d::Identity();  ///< from^-1 to
 	double overlap = 0, rmse_m = 0, chi2 = 0, travelled_m = 0;
+	/** How far the measured T is from the estimate's from^-1 to when it was
+	 * verified: translation and rotation of their difference (what an
+	 * optimisation would correct; 0 before ICP ran). */
+	double error_m = 0, error_deg = 0;
 	bool accepted = false;
 	std::string reason;       ///< why rejected ("" when accepted)
 	bool descriptor = false;  ///< a descriptor candidate (else geometric)
