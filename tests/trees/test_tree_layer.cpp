@@ -655,37 +655,6 @@ TEST(TreeLayer, SegmentShiftsAbsorbAPoseJumpWhereTheFootIsHidden)
 		    << "stem at " << t.x << ", " << t.y;
 }
 
-// A big stem seen only from where its foot is hidden (by shrubs, or the
-// ground behind it): the lowest points of the cells it fills are on the
-// stem, 0.9 m above the ground, and no ground is seen within 0.8 m of its
-// surface. Its points above there must be kept down to the foot seen,
-// not from 0.25 m above it (a 33 cm stem of the 58-minute run kept no
-// points below 1.25 m above the ground and was missed).
-TEST(TreeLayer, AStemFillingItsCellsKeepsItsPointsDownToItsVisibleFoot)
-{
-	const Stem big{24, 5, 0.2};
-	TreeOptions o;
-	TreeLayer layer(o, 20.0);
-	std::mt19937 rng(3);
-	const double foot = 0.9;
-	for (double x = 5; x <= 40; x += 1.0)
-	{
-		const Eigen::Vector3d s(x, 0, ground(x, 0) + 1.5);
-		layer.addScan(scan({big}, s, rng, foot, 0.8), s);
-	}
-	double lowest = 1e9;
-	size_t below_1_1m = 0;  // none from 0.25 m above the stem's own foot
-	for (const auto& p : layer.stemPoints(layer.columnOf(big.x, big.y)))
-	{
-		if (std::hypot(p.x() - big.x, p.y() - big.y) > big.r + 0.03) continue;
-		const double h = p.z() - ground(big.x, big.y);
-		lowest = std::min(lowest, h);
-		below_1_1m += h < 1.1;
-	}
-	EXPECT_LT(lowest, foot + 0.05);
-	EXPECT_GT(below_1_1m, 100u);
-}
-
 // Without pose errors the stems' rings are sharp: the multi-view fit, whose
 // per-segment shifts trade off with the radius where each segment sees
 // one side of the stem, must leave them as the single circle has them.

@@ -956,8 +956,7 @@ void TreeLayer::addScan(const std::vector<Eigen::Vector3f>& pts,
 	// The square's minimum as two 1D ones: along the rows (each touched
 	// cell spreads its height), then down the columns at the touched cells
 	// (the 5 x 5 scan of every touched cell was a third of addScan).
-	constexpr int kTagReach = 2;             // cells: 1 m at 0.5 m cells
-	constexpr float kMaxTerrainRise = 0.5f;  // m within kTagReach cells
+	constexpr int kTagReach = 2;  // cells: 1 m at 0.5 m cells
 	sc.row_min.assign(sc.lowest_of_cell.size(),
 	                  std::numeric_limits<float>::infinity());
 	for (const int32_t c : sc.touched)
@@ -1008,21 +1007,9 @@ void TreeLayer::addScan(const std::vector<Eigen::Vector3f>& pts,
 		if (c < 0) continue;
 		Column* col = sc.column_of_cell[size_t(c)];
 		const float low_z = sc.low_z[size_t(c)];
+		const float h = pts[i].z() - low_z;
+		if (h < o_.layer_min_hag_m || h > o_.layer_max_hag_m) continue;
 		const float h_tag = pts[i].z() - sc.tag_z[size_t(c)];
-		// The band's foot: the cell's lowest point, but at most
-		// kMaxTerrainRise above the lowest within kTagReach cells. A stem
-		// that fills its cells, seen from where its foot is hidden, makes
-		// their lowest point on the stem itself, and its points up to
-		// layer_min_hag_m above that were dropped for good (58-minute run:
-		// a 33 cm stem kept no points below 1.9 m, 1.25 m above the
-		// ground, and was missed). Terrain rises less than that within
-		// the square, except on slopes above ~20 degrees, where the band
-		// then also holds ground points 0.75 m above the square's lowest.
-		const float foot =
-		    std::min(low_z, sc.tag_z[size_t(c)] + kMaxTerrainRise);
-		if (pts[i].z() - foot < o_.layer_min_hag_m ||
-		    pts[i].z() - low_z > o_.layer_max_hag_m)
-			continue;
 		col->dirty = true;
 		const Eigen::Vector3f d = pts[i] - sensor.cast<float>();
 		const float n = d.norm();
