@@ -168,13 +168,14 @@ bool PoseGraph::solve(bool with_gnss)
 	so.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
 	// Eigen's sparse Cholesky: on an 11-lap graph of 3900 keyframes (a
 	// solve after each of its 394 closures) 34.7 s against 48.5 s with
-	// SuiteSparse, the same poses (doc/backend.md "Pose graph").
+	// SuiteSparse, the same poses to the micrometre (doc/backend.md "Pose
+	// graph").
 	if (ceres::IsSparseLinearAlgebraLibraryTypeAvailable(ceres::EIGEN_SPARSE))
 		so.sparse_linear_algebra_library_type = ceres::EIGEN_SPARSE;
 	// (A first trust region of 1e8 instead of Ceres' 1e4, i.e. a
 	// Gauss-Newton first step, took that graph's solves to 21.6 s and
-	// 0.7 mm from the optimum instead of 6.2 mm, but moved the robot
-	// bench's trees: DBH RMSE 0.94 -> 1.03 cm. Not kept: doc/backend.md.)
+	// 0.7 mm from the optimum instead of 6.2 mm, but the trajectories' ATE
+	// rose by 0.4-1.6 mm in all three bench worlds. Not kept.)
 	so.max_num_iterations = 50;
 	so.num_threads = 1;
 	so.logging_type = ceres::SILENT;
