@@ -230,11 +230,11 @@ Closure verifyClosure(const std::vector<Keyframe>& kfs, const Poses& poses,
 	c.T = r.T;
 	c.overlap = r.overlap;
 	c.rmse_m = r.rmse_m;
-	{
-		const auto d = difference(estimate, r.T);
-		c.error_m = d.head<3>().norm();
-		c.error_deg = d.tail<3>().norm() * 180 / M_PI;
-	}
+	// The correction the closure asks of the estimate (also the
+	// consistency gate's input below).
+	const auto to_estimate = difference(estimate, r.T);
+	c.error_m = to_estimate.head<3>().norm();
+	c.error_deg = to_estimate.tail<3>().norm() * 180 / M_PI;
 	if (!r.converged)
 	{
 		c.reason = "not_converged";
@@ -267,9 +267,8 @@ Closure verifyClosure(const std::vector<Keyframe>& kfs, const Poses& poses,
 	    180;
 	if (!seed)
 	{
-		const auto d = difference(estimate, r.T);
-		c.chi2 = d.head<3>().squaredNorm() / (st * st) +
-		         d.tail<3>().squaredNorm() / (sr * sr);
+		c.chi2 = to_estimate.head<3>().squaredNorm() / (st * st) +
+		         to_estimate.tail<3>().squaredNorm() / (sr * sr);
 	}
 	else
 	{
