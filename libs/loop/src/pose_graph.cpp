@@ -1,4 +1,5 @@
 #include <forest_slam/loop/pose_graph.h>
+#include <forest_slam/loop/relative_pose_cost.h>
 
 #include <ceres/ceres.h>
 #include <ceres/manifold.h>
@@ -28,31 +29,6 @@ size_t PoseGraph::addNode(const Eigen::Isometry3d& initial)
 
 namespace
 {
-/** The relative-pose error of Ceres' pose_graph_3d example. */
-struct RelativeCost
-{
-	Eigen::Vector3d p_ab;
-	Eigen::Quaterniond q_ab;
-	Matrix6d sqrt_info;
-	template <typename T>
-	bool operator()(const T* pa, const T* qa, const T* pb, const T* qb,
-	                T* res) const
-	{
-		Eigen::Map<const Eigen::Matrix<T, 3, 1>> p_a(pa), p_b(pb);
-		Eigen::Map<const Eigen::Quaternion<T>> q_a(qa), q_b(qb);
-		const Eigen::Quaternion<T> q_a_inv = q_a.conjugate();
-		const Eigen::Quaternion<T> q_est = q_a_inv * q_b;
-		const Eigen::Matrix<T, 3, 1> p_est = q_a_inv * (p_b - p_a);
-		const Eigen::Quaternion<T> dq =
-		    q_ab.template cast<T>() * q_est.conjugate();
-		Eigen::Map<Eigen::Matrix<T, 6, 1>> r(res);
-		r.template head<3>() = p_est - p_ab.template cast<T>();
-		r.template tail<3>() = T(2.0) * dq.vec();
-		r.applyOnTheLeft(sqrt_info.template cast<T>());
-		return true;
-	}
-};
-
 /** Antenna position in ENU against a fix. */
 struct GnssCost
 {
@@ -136,12 +112,10 @@ bool PoseGraph::solve(bool with_gnss)
 	}
 	for (const auto& f : factors_)
 	{
-		auto* cost =
-		    new ceres::AutoDiffCostFunction<RelativeCost, 6, 3, 4, 3, 4>(
-		        new RelativeCost{
-		            f.T_ab.translation(),
-		            Eigen::Quaterniond(f.T_ab.linear()).normalized(),
-		            f.sqrt_information});
+		auto* cost = new RelativePoseCost(
+		    f.T_ab.translation(),
+		    Eigen::Quaterniond(f.T_ab.linear()).normalized(),
+		    f.sqrt_information);
 		problem.AddResidualBlock(
 		    cost, f.robust ? new ceres::CauchyLoss(1.0) : nullptr,
 		    P[f.a].data(), Q[f.a].data(), P[f.b].data(), Q[f.b].data());
