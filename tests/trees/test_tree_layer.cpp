@@ -570,6 +570,33 @@ TEST(TreeOptions, RedetectGrowthBelowOneIsRejectedByName)
 	}
 }
 
+TEST(TreeOptions, DtmSlopeOutOfRangeIsRejectedByName)
+{
+	TreeOptions o;
+	EXPECT_EQ(o.dtm_max_slope_deg, 45.0);
+	auto off = core::TrackedConfig::fromText("[trees]\ndtm_max_slope_deg = 0\n",
+	                                         "t.ini");
+	o.loadFromConfigFile(off, "trees");
+	EXPECT_EQ(o.dtm_max_slope_deg, 0.0);
+	for (const char* v : {"90", "-5"})
+	{
+		auto bad = core::TrackedConfig::fromText(
+		    std::string("[trees]\ndtm_max_slope_deg = ") + v + "\n", "t.ini");
+		try
+		{
+			o.loadFromConfigFile(bad, "trees");
+			FAIL() << "dtm_max_slope_deg = " << v << " accepted";
+		}
+		catch (const core::ConfigError& e)
+		{
+			EXPECT_NE(std::string(e.what()).find("t.ini"), std::string::npos);
+			EXPECT_NE(std::string(e.what()).find("dtm_max_slope_deg"),
+			          std::string::npos)
+			    << e.what();
+		}
+	}
+}
+
 namespace
 {
 /** Drives past `stems` along y = 0 (x = 5..60 m, one scan per metre) into

@@ -750,6 +750,46 @@ TEST(Trees, SlopeDtmAndDbhAtLocalBreastHeight)
 	}
 }
 
+// Where the ground is hidden (seen from afar behind stems and shrubs) the
+// lowest points of most cells are clutter metres up, the majority of the
+// median's window: without the slope bound the DTM there is the clutter's
+// height (the 58-minute run: 3.4 m under two stems, doc/trees.md "Trees
+// beyond 15 m of the path"). Flat ground at z = 0 around a 6 x 6 m patch
+// that sees only clutter at 3.5-4.5 m, except two cells of ground inside.
+TEST(Trees, DtmWhereTheGroundIsHiddenStaysOnTheGround)
+{
+	std::mt19937 rng(17);
+	std::uniform_real_distribution<double> u(0, 1);
+	Pts pts;
+	auto inPatch = [](double x, double y)
+	{ return x >= 8 && x < 14 && y >= 8 && y < 14; };
+	auto groundSeen = [](double x, double y)
+	{
+		return (x >= 9.5 && x < 10.5 && y >= 9.5 && y < 10.5) ||
+		       (x >= 12 && x < 13 && y >= 12 && y < 13);
+	};
+	for (int i = 0; i < 60000; i++)
+	{
+		const double x = 22 * u(rng), y = 22 * u(rng);
+		if (!inPatch(x, y) || groundSeen(x, y))
+			pts.emplace_back(x, y, 0.02 * (u(rng) - 0.5));
+		else
+			pts.emplace_back(x, y, 3.5 + u(rng));
+	}
+	TreeOptions o;
+	o.dtm_max_slope_deg = 45;
+	const auto dtm = buildDtm(pts, o);
+	double worst = 0;
+	for (double x = 8.25; x < 14; x += 0.5)
+		for (double y = 8.25; y < 14; y += 0.5)
+			worst = std::max(worst, std::abs(dtm.heightAt(x, y)));
+	EXPECT_LT(worst, 0.3) << "the clutter taken for ground";
+	EXPECT_LT(std::abs(dtm.heightAt(4, 4)), 0.05);  // the open ground
+
+	o.dtm_max_slope_deg = 0;  // the bound off: the median keeps the clutter
+	EXPECT_GT(buildDtm(pts, o).heightAt(11, 11), 3.0);
+}
+
 // Stems among shrubs, a wall and branch-like clutter: walls and shrubs must
 // not become trees.
 TEST(Trees, SyntheticPlotWithShrubsAndWall)

@@ -12,6 +12,7 @@ namespace forest_slam::trees
 	X(dtm_cell_m)                                                              \
 	X(dtm_window_cells)                                                        \
 	X(dtm_max_step_m)                                                          \
+	X(dtm_max_slope_deg)                                                       \
 	X(slice_min_m)                                                             \
 	X(slice_max_m)                                                             \
 	X(slice_step_m)                                                            \
@@ -20,7 +21,8 @@ namespace forest_slam::trees
 	X(kmeans_leaf_points)                                                      \
 	X(link_distance_m)                                                         \
 	X(min_slice_points)                                                        \
-	X(min_dbh_m) X(max_dbh_m) X(section_max_rmse_m) X(section_rmse_rel) X(     \
+	X(min_dbh_m)                                                               \
+	X(max_dbh_m) X(section_max_rmse_m) X(section_rmse_rel) X(                  \
 	    section_min_arc_deg) X(section_min_inlier_ratio) X(max_centre_step_m)  \
 	    X(max_radius_ratio) X(max_slice_gap) X(min_slices) X(max_lean_deg) X(  \
 	        max_taper_m_per_m) X(max_axis_rmse_m) X(min_tree_points)           \
@@ -52,6 +54,8 @@ void TreeOptions::loadFromConfigFile(const mrpt::config::CConfigFileBase& c,
 		                        what);
 	};
 	if (dtm_cell_m <= 0) bad("dtm_cell_m must be > 0");
+	if (!(dtm_max_slope_deg >= 0 && dtm_max_slope_deg < 90))
+		bad("dtm_max_slope_deg must be in [0, 90) (0: off)");
 	if (slice_cell_m < 0) bad("slice_cell_m must be >= 0");
 	if (slice_step_m <= 0 || slice_thickness_m <= 0 ||
 	    slice_max_m <= slice_min_m)

@@ -15,6 +15,10 @@ struct TreeOptions : public mrpt::config::CLoadableOptions
 	int dtm_window_cells = 2;  ///< median window half-size for the filter
 	double dtm_max_step_m =
 	    0.3;  ///< a cell this far above its neighbourhood is not ground
+	/** Ground rises at most this steeply from any lower cell: a cell above
+	 * that bound (plus dtm_max_step_m) is not ground, before the median
+	 * test (0: off). */
+	double dtm_max_slope_deg = 45;
 
 	// Stacked slices above local ground (issue 7: stems confirmed by slices).
 	double slice_min_m = 0.5;
