@@ -15,6 +15,8 @@
 #include <octomap/OcTree.h>
 
 #include <GeographicLib/UTMUPS.hpp>
+#include <array>
+#include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -611,6 +613,58 @@ TEST(TreeExport, CsvGetsLatLonWhenGeoreferencedGeoJsonIsValid)
 	std::snprintf(lon, sizeof(lon), "%.6f", ll.lon_deg);
 	EXPECT_NE(j.find(std::string(lon).substr(0, 8)), std::string::npos) << j;
 	EXPECT_NE(j.find("\"dbh_m\": 0.4"), std::string::npos) << j;
+}
+
+// Each stem's horizontal distance from the polyline of the trajectory: the
+// nearest point may lie inside a long segment, far from both its ends.
+TEST(TreeExport, PathDistanceIsToThePolylineAndWrittenInCentimetres)
+{
+	core::Trajectory path;
+	for (const auto& [x, y, z] :
+	     std::vector<std::array<double, 3>>{{0, 0, 1},
+	                                        {0.2, 0, 1.1},
+	                                        {0.4, 0, 0.9},
+	                                        {20.4, 0, 3},
+	                                        {20.4, 10, 0}})
+	{
+		core::StampedPose s;
+		s.t_s = double(path.size());
+		s.pose.translation() = Eigen::Vector3d(x, y, z);
+		path.push_back(s);
+	}
+	std::vector<map::TreeRecord> t(4);
+	t[0].x = 10, t[0].y = 7.5;     // above the 20 m segment's middle: 7.5
+	t[1].x = 25, t[1].y = 5;       // beside the last segment: 4.6
+	t[2].x = -3, t[2].y = -4;      // behind the start: 5
+	t[3].x = 20.4, t[3].y = 10.0;  // on the last pose: 0
+	outputs::setPathDistances(t, path);
+	EXPECT_NEAR(t[0].path_distance_m, 7.5, 1e-9);
+	EXPECT_NEAR(t[1].path_distance_m, 4.6, 1e-9);
+	EXPECT_NEAR(t[2].path_distance_m, 5.0, 1e-9);
+	EXPECT_NEAR(t[3].path_distance_m, 0.0, 1e-9);
+
+	std::vector<map::TreeRecord> none(1);
+	outputs::setPathDistances(none, core::Trajectory{});
+	EXPECT_TRUE(std::isnan(none[0].path_distance_m));
+
+	const auto dir = tempDir("path_distance");
+	none.push_back(t[1]);
+	outputs::writeTreesCsvGeo((dir / "t.csv").string(), none, std::nullopt);
+	std::ifstream csv(dir / "t.csv");
+	std::string header, unknown, known;
+	std::getline(csv, header), std::getline(csv, unknown),
+	    std::getline(csv, known);
+	EXPECT_EQ(header.substr(header.rfind(',') + 1), "path_distance_m");
+	EXPECT_EQ(unknown.back(), ',') << unknown;  // empty: no trajectory
+	EXPECT_EQ(known.substr(known.rfind(',') + 1), "4.60") << known;
+	outputs::writeTreesGeoJson((dir / "t.geojson").string(), none,
+	                           std::nullopt);
+	const auto j = readText(dir / "t.geojson");
+	EXPECT_EQ(std::count(j.begin(), j.end(), '{'),
+	          std::count(j.begin(), j.end(), '}'));
+	EXPECT_NE(j.find("\"path_distance_m\": 4.6"), std::string::npos) << j;
+	EXPECT_EQ(j.find("path_distance_m"), j.rfind("path_distance_m"))
+	    << "only the stem with a distance has the property";
 }
 
 TEST(Report, StandTableFigures)

@@ -3,12 +3,81 @@
 #include <forest_slam/outputs/tree_export.h>
 #include <forest_slam/trees/tree_csv.h>
 
+#include <nanoflann.hpp>
+
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <sstream>
 
 namespace forest_slam::outputs
 {
+namespace
+{
+struct PathAdaptor
+{
+	const std::vector<Eigen::Vector2d>& p;
+	size_t kdtree_get_point_count() const { return p.size(); }
+	double kdtree_get_pt(size_t i, size_t d) const { return p[i][int(d)]; }
+	template <class B>
+	bool kdtree_get_bbox(B&) const
+	{
+		return false;
+	}
+};
+using PathTree = nanoflann::KDTreeSingleIndexAdaptor<
+    nanoflann::L2_Simple_Adaptor<double, PathAdaptor>, PathAdaptor, 2, size_t>;
+
+double distanceToSegment(const Eigen::Vector2d& q, const Eigen::Vector2d& a,
+                         const Eigen::Vector2d& b)
+{
+	const Eigen::Vector2d ab = b - a;
+	const double l2 = ab.squaredNorm();
+	const double s = l2 > 0 ? std::clamp((q - a).dot(ab) / l2, 0.0, 1.0) : 0.0;
+	return (q - (a + s * ab)).norm();
+}
+}  // namespace
+
+void setPathDistances(std::vector<map::TreeRecord>& trees,
+                      const core::Trajectory& trajectory)
+{
+	if (trajectory.empty()) return;
+	std::vector<Eigen::Vector2d> p;
+	p.reserve(trajectory.size());
+	for (const auto& s : trajectory)
+		p.push_back(s.pose.translation().head<2>());
+	double longest = 0;  // segment
+	for (size_t i = 1; i < p.size(); i++)
+		longest = std::max(longest, (p[i] - p[i - 1]).norm());
+	const PathAdaptor ad{p};
+	PathTree tree(2, ad, nanoflann::KDTreeSingleIndexAdaptorParams(10));
+	tree.buildIndex();
+	std::vector<std::pair<size_t, double>> near;
+	for (auto& t : trees)
+	{
+		const double q[2] = {t.x, t.y};
+		size_t nearest = 0;
+		double d2 = 0;
+		tree.knnSearch(q, 1, &nearest, &d2);
+		// The nearest point of the polyline lies on a segment one of whose
+		// ends is within half the longest segment of it: every such end is
+		// within that of the nearest position's distance.
+		const double reach = std::sqrt(d2) + 0.5 * longest + 1e-9;
+		tree.radiusSearch(q, reach * reach, near, nanoflann::SearchParams());
+		const Eigen::Vector2d xy(t.x, t.y);
+		double best = std::sqrt(d2);
+		for (const auto& [i, unused] : near)
+		{
+			if (i > 0)
+				best = std::min(best, distanceToSegment(xy, p[i - 1], p[i]));
+			if (i + 1 < p.size())
+				best = std::min(best, distanceToSegment(xy, p[i], p[i + 1]));
+		}
+		t.path_distance_m = best;
+	}
+}
+
 void writeTreesCsvGeo(const std::string& path,
                       const std::vector<map::TreeRecord>& trees,
                       const std::optional<Georeference>& geo)
@@ -92,6 +161,8 @@ void writeTreesGeoJson(const std::string& path,
 			    j.kv("arc_coverage_deg", t.arc_coverage_deg);
 			    j.kv("n_slices", static_cast<long long>(t.n_slices));
 			    j.kv("quality", static_cast<long long>(t.quality));
+			    if (std::isfinite(t.path_distance_m))
+				    j.kv("path_distance_m", t.path_distance_m);
 			    j.endObject().endObject();
 		    }
 		    j.endArray().endObject();

@@ -236,6 +236,10 @@ OutputSummary writeRunOutputs(const OutputInputs& in, const std::string& dir)
 		}
 	}
 	sum.trees = tree_list.size();
+	// How far each stem is from the path: stems seen from afar are less
+	// accurate (doc/trees.md, "Trees beyond 15 m of the path"), so users
+	// can cut the list at their plot's radius.
+	setPathDistances(tree_list, in.trajectory);
 
 	if (o.forest_map)
 	{

@@ -15,6 +15,7 @@
 
 #include <Eigen/Geometry>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <string>
 #include <unordered_map>
@@ -35,6 +36,10 @@ struct TreeRecord
 	double arc_coverage_deg = 0;
 	uint16_t n_slices = 0;
 	uint8_t quality = 0;  ///< 0 = good; bit flags defined by libs/trees
+	/** Horizontal distance from the stem to the run's trajectory [m]; NaN
+	 * where there is none (a standalone cloud). Set when the outputs are
+	 * written (outputs::setPathDistances), not stored in forest.map. */
+	double path_distance_m = std::numeric_limits<double>::quiet_NaN();
 };
 
 /** A 20 m cubic cell of the map. */

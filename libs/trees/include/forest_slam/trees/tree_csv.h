@@ -9,9 +9,10 @@ namespace forest_slam::trees
 {
 constexpr const char* kTreesCsvHeader =
     "id,x,y,z_ground,dbh_m,height_m,n_points,fit_rmse_m,arc_coverage_deg,n_"
-    "slices,quality";
+    "slices,quality,path_distance_m";
 
-/** Atomic write (temp file + rename); millimetre precision for lengths. */
+/** Atomic write (temp file + rename); millimetre precision for lengths,
+ * centimetres for path_distance_m (empty where unknown). */
 void writeTreesCsv(const std::string& path,
                    const std::vector<map::TreeRecord>& trees);
 
